@@ -1,0 +1,96 @@
+// CommandLine: the one table that declares every command of the `vdbrad` tool.
+//
+// Names, one-line docs, positional arguments and options {name, default, example, doc} live in a
+// single table (Commands.cc). Parsing, `--help`, "did you mean" suggestions and the README's
+// command table (`vdbrad help --markdown`) are all generated from it, so they cannot drift.
+// The whole command line is parsed and type-checked before any heavy work starts: a typo fails in
+// milliseconds and leaves no output. This file knows nothing of OpenVDB (it compiles fast).
+#pragma once
+
+#include <functional>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace vdbrad {
+namespace cli {
+
+/// A mistake in the command line (exit status 2).
+class UsageError : public std::runtime_error
+{
+public:
+    using std::runtime_error::runtime_error;
+};
+
+/// A failure with a message ready for the user, already naming its file (exit status 1).
+class UserError : public std::runtime_error
+{
+public:
+    using std::runtime_error::runtime_error;
+};
+
+enum class OptionType { Flag, Int, Float, String };
+
+struct OptionSpec
+{
+    std::string name;          ///< without the leading dashes
+    OptionType type;
+    std::string defaultValue;  ///< as shown in help; empty: none
+    std::string example;       ///< a typical value, shown in help
+    std::string doc;           ///< one line, with units and valid range
+};
+
+class Arguments;
+
+struct CommandSpec
+{
+    std::string name;
+    std::string usage;                    ///< positional arguments, e.g. "NAME OUT.vdb"
+    size_t minPositional = 0, maxPositional = 0;
+    std::string doc;                      ///< one line
+    std::vector<OptionSpec> options;
+    std::vector<std::string> examples;    ///< full command lines
+    std::function<int(const Arguments&)> run;
+};
+
+/// Parsed, type-checked arguments of one command.
+class Arguments
+{
+public:
+    const CommandSpec& command() const { return *mCommand; }
+    const std::vector<std::string>& positional() const { return mPositional; }
+    bool has(const std::string& name) const;         ///< given on the command line
+    bool flag(const std::string& name) const;
+    int getInt(const std::string& name) const;        ///< given value, else the default
+    double getFloat(const std::string& name) const;
+    std::string getString(const std::string& name) const;
+
+private:
+    friend Arguments parseCommand(const CommandSpec&, const std::vector<std::string>&);
+    const CommandSpec* mCommand = nullptr;
+    std::vector<std::string> mPositional;
+    std::map<std::string, std::string> mValues;
+    const OptionSpec& spec(const std::string& name) const;
+};
+
+/// @brief Parse @a args (after the command name) against @a command.
+/// Accepts `--name value`, `--name=value`, and `-` as a positional (standard input/output).
+/// @throw UsageError with a suggestion for unknown options, missing values, bad numbers, wrong
+///        positional counts
+Arguments parseCommand(const CommandSpec& command, const std::vector<std::string>& args);
+
+/// The closest of @a candidates to @a word, if it is close enough to be a likely typo.
+std::optional<std::string> suggest(const std::string& word,
+    const std::vector<std::string>& candidates);
+
+/// Full help text of one command.
+std::string commandHelp(const CommandSpec& command);
+/// Overview of all commands.
+std::string overviewHelp(const std::vector<CommandSpec>& commands);
+/// Markdown table of every command and option (the README's command reference).
+std::string markdownReference(const std::vector<CommandSpec>& commands);
+
+} // namespace cli
+} // namespace vdbrad

@@ -1,0 +1,505 @@
+#include "Commands.h"
+
+#include "Progress.h"
+
+#include "grids/CanonicalGrids.h"
+#include "vdbrad/vdbrad.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <sys/stat.h>
+#include <unistd.h>
+
+namespace vdbrad {
+namespace cli {
+
+namespace {
+
+// ---- standard streams and files ----------------------------------------------------------------
+
+bool isStdin(const std::string& p) { return p == "-" || p == "stdin.vdb"; }
+bool isStdout(const std::string& p) { return p == "-" || p == "stdout.vdb"; }
+std::string inputLabel(const std::string& p) { return isStdin(p) ? "<stdin>" : p; }
+std::string outputLabel(const std::string& p) { return isStdout(p) ? "<stdout>" : p; }
+
+/// Checks on an output made before any heavy work, so a bad command line fails in milliseconds.
+void
+checkOutput(const std::string& out, const std::vector<std::string>& inputs, bool overwrite)
+{
+    if (isStdout(out)) {
+        if (::isatty(STDOUT_FILENO) == 1) {
+            throw UsageError("refusing to write VDB data to a terminal; redirect standard output "
+                "or give a file name");
+        }
+        return;
+    }
+    struct stat so;
+    if (::stat(out.c_str(), &so) == 0) {
+        if (S_ISDIR(so.st_mode)) throw UserError(out + ": is a directory");
+        for (const auto& in : inputs) {
+            struct stat si;
+            if (!isStdin(in) && ::stat(in.c_str(), &si) == 0 && si.st_dev == so.st_dev
+                && si.st_ino == so.st_ino && !overwrite) {
+                throw UsageError("output '" + out + "' is the input file; pass --overwrite to "
+                    "replace it");
+            }
+        }
+    }
+    const size_t slash = out.find_last_of('/');
+    const std::string dir = slash == std::string::npos ? "." : out.substr(0, slash + 1);
+    struct stat sd;
+    if (::stat(dir.c_str(), &sd) != 0 || !S_ISDIR(sd.st_mode)) {
+        throw UserError(out + ": folder '" + dir + "' does not exist");
+    }
+}
+
+VdbFile
+readInput(const std::string& path)
+{
+    try {
+        if (isStdin(path)) {
+            if (::isatty(STDIN_FILENO) == 1) {
+                throw UsageError("refusing to read VDB data from a terminal; pipe a file in");
+            }
+            return readVdbStream(std::cin);
+        }
+        return readVdbFile(path);
+    } catch (const UsageError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw UserError(inputLabel(path) + ": " + errorMessage(e));
+    }
+}
+
+void
+writeOutput(const VdbFile& file, const std::string& path)
+{
+    try {
+        const std::string bytes = serializeVdb(file);
+        if (isStdout(path)) {
+            // One write of complete bytes: a failure before this point leaves stdout empty.
+            if (std::fwrite(bytes.data(), 1, bytes.size(), stdout) != bytes.size()
+                || std::fflush(stdout) != 0) {
+                throw UserError("<stdout>: write failed");
+            }
+            return;
+        }
+        writeFileAtomic(path, bytes);
+    } catch (const UserError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw UserError(outputLabel(path) + ": " + errorMessage(e));
+    }
+}
+
+void
+warn(const std::string& label, const std::string& what)
+{
+    std::cerr << "vdbrad: warning: " << label << ": " << what << "\n";
+}
+
+// Runs @a f, turning library errors into one user line naming @a label.
+template<typename F>
+auto
+forFile(const std::string& label, F&& f) -> decltype(f())
+{
+    try {
+        return f();
+    } catch (const Cancelled&) {
+        throw;
+    } catch (const UserError&) {
+        throw;
+    } catch (const UsageError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw UserError(label + ": " + errorMessage(e));
+    }
+}
+
+// ---- option groups shared by several commands ---------------------------------------------------
+
+const OptionSpec kQuiet{"quiet", OptionType::Flag, "", "", "no progress messages on stderr"};
+const OptionSpec kOverwrite{"overwrite", OptionType::Flag, "", "",
+    "allow the output to replace an input file"};
+
+std::vector<OptionSpec>
+sceneOptionSpecs()
+{
+    return {
+        {"surface", OptionType::String, "", "surface",
+            "grid to use as the surface (a level set or a vec3s normal grid); default: `normal`, "
+            "else the only level set"},
+        {"albedo", OptionType::Float, "0.5", "0.7",
+            "diffuse albedo in [0, 1] of every voxel when the file has no `albedo` grid"},
+        {"separation", OptionType::Int, "26", "6",
+            "level sets: 26 (surface blocks 26-connected lines) or 6 (thinner, blocks "
+            "6-connected lines)"},
+    };
+}
+
+SceneOptions
+sceneOptions(const Arguments& a)
+{
+    SceneOptions o;
+    o.surface = a.getString("surface");
+    o.defaultAlbedo = float(a.getFloat("albedo"));
+    o.separation = a.getInt("separation");
+    if (!(o.defaultAlbedo >= 0.f && o.defaultAlbedo <= 1.f)) {
+        throw UsageError("--albedo must be in [0, 1], got " + a.getString("albedo"));
+    }
+    if (o.separation != 6 && o.separation != 26) {
+        throw UsageError("--separation must be 6 or 26, got " + a.getString("separation"));
+    }
+    return o;
+}
+
+template<typename T>
+std::vector<T>
+concat(std::vector<T> a, const std::vector<T>& b)
+{
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+}
+
+std::string
+withCommas(uint64_t n)
+{
+    std::string s = std::to_string(n);
+    for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
+    return s;
+}
+
+std::string
+formatBytes(double b)
+{
+    std::ostringstream os;
+    os << std::fixed << std::setprecision(1);
+    if (b < 1024) os << b << " B";
+    else if (b < 1024 * 1024) os << b / 1024 << " KiB";
+    else if (b < 1024.0 * 1024 * 1024) os << b / (1024 * 1024) << " MiB";
+    else os << b / (1024.0 * 1024 * 1024) << " GiB";
+    return os.str();
+}
+
+// ---- make ------------------------------------------------------------------------------------
+
+int
+runMake(const Arguments& a)
+{
+    const std::string name = a.positional()[0], out = a.positional()[1];
+    const grids::Builder* builder = grids::findBuilder(name);
+    if (!builder) {
+        std::vector<std::string> names;
+        for (const auto& b : grids::builders()) names.push_back(b.name);
+        std::string msg = "unknown scene '" + name + "'";
+        if (auto s = suggest(name, names)) msg += "; did you mean '" + *s + "'?";
+        else {
+            msg += "; one of:";
+            for (const auto& n : names) msg += " " + n;
+        }
+        throw UsageError(msg);
+    }
+    grids::BuildParams p;
+    p.res = a.getInt("res");
+    if (p.res < 1 || p.res > 4096) {
+        throw UsageError("--res must be in [1, 4096], got " + a.getString("res"));
+    }
+    // Negative BuildParams fields mean "the scene's default": reject negatives here, where the
+    // user typed them.
+    auto optional = [&](const char* opt, float& field, float hi) {
+        if (!a.has(opt)) return;
+        field = float(a.getFloat(opt));
+        if (!(field >= 0.f && field <= hi)) {
+            std::ostringstream os;
+            os << "--" << opt << " must be in [0, " << hi << "], got " << a.getString(opt);
+            throw UsageError(os.str());
+        }
+    };
+    const float big = std::numeric_limits<float>::max();
+    optional("albedo", p.albedo, 1.f);
+    optional("emission", p.emission, big);
+    optional("radius", p.radius, big);
+    optional("height", p.height, big);
+    optional("tau", p.tau, big);
+    if (a.has("seed")) {
+        if (a.getInt("seed") < 0) throw UsageError("--seed must be >= 0");
+        p.seed = unsigned(a.getInt("seed"));
+    }
+    checkOutput(out, {}, true);
+
+    ProgressInterrupter progress(a.flag("quiet"));
+    VdbFile file;
+    progress.start(("building " + name + " at " + std::to_string(p.res)).c_str());
+    // Builder messages start with the scene's name already.
+    file.grids = forFile("make", [&] { return builder->build(p); });
+    progress.end();
+    file.metadata->insertMeta("creator", openvdb::StringMetadata(
+        std::string("vdbrad ") + VDBRAD_VERSION_STRING));
+    writeOutput(file, out);
+    return 0;
+}
+
+// ---- info ------------------------------------------------------------------------------------
+
+void
+describeGrids(std::ostream& os, const std::string& label, const VdbFile& file)
+{
+    os << label << ": " << file.grids.size() << " grid" << (file.grids.size() == 1 ? "" : "s");
+    for (auto it = file.metadata->beginMeta(); it != file.metadata->endMeta(); ++it) {
+        os << (it == file.metadata->beginMeta() ? "; " : ", ") << it->first << " = "
+           << it->second->str();
+    }
+    os << "\n";
+    for (const auto& g : file.grids) {
+        const openvdb::CoordBBox box = g->evalActiveVoxelBoundingBox();
+        os << "  '" << g->getName() << "'  " << g->valueType() << ", "
+           << openvdb::GridBase::gridClassToString(g->getGridClass()) << ", "
+           << withCommas(g->activeVoxelCount()) << " active voxels, voxel size "
+           << g->transform().voxelSize()[0] << ", " << formatBytes(double(g->memUsage())) << "\n";
+        if (!box.empty()) {
+            const openvdb::BBoxd world = g->transform().indexToWorld(box);
+            os << "      index " << box.min() << " .. " << box.max() << ", world " << world.min()
+               << " .. " << world.max() << "\n";
+        }
+    }
+}
+
+std::string
+describeAttribute(const Attribute& a, const char* absent)
+{
+    if (a.isUniform()) return absent;
+    float lo = std::numeric_limits<float>::max(), hi = -lo;
+    size_t nonZero = 0;
+    const size_t n = a.isRgb() ? a.rgbArray().size() : a.greyArray().size();
+    for (size_t i = 0; i < n; ++i) {
+        const openvdb::Vec3f c = a.rgb(i);
+        lo = std::min({lo, c[0], c[1], c[2]});
+        hi = std::max({hi, c[0], c[1], c[2]});
+        if (c[0] != 0.f || c[1] != 0.f || c[2] != 0.f) ++nonZero;
+    }
+    std::ostringstream os;
+    os << (a.isRgb() ? "RGB" : "grey") << " grid, values in [" << lo << ", " << hi << "], "
+       << withCommas(nonZero) << " non-zero voxels";
+    return os.str();
+}
+
+int
+runInfo(const Arguments& a)
+{
+    const std::string in = a.positional()[0];
+    const SceneOptions options = sceneOptions(a);
+    const VdbFile file = readInput(in);
+    const std::string label = inputLabel(in);
+    describeGrids(std::cout, label, file);
+
+    const GridRoles roles = forFile(label, [&] { return identifyRoles(file.grids, options.surface); });
+    std::cout << "scene contract:\n";
+    int status = 0;
+    if (roles.surface) {
+        try {
+            ProgressInterrupter progress(true);
+            const Scene scene = buildScene(file.grids, options, &progress);
+            std::cout << "  surface:   " << withCommas(scene.size()) << " surface voxels from "
+                      << (scene.surfaceKind() == GridRoles::SurfaceKind::LevelSet
+                             ? "level set '" : "normal grid '")
+                      << scene.surfaceName() << "'";
+            if (scene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
+                std::cout << " (" << options.separation << "-separating)";
+            }
+            std::cout << ", " << formatBytes(double(scene.memUsage())) << " in memory\n";
+            std::cout << "  albedo:    " << describeAttribute(scene.albedo(),
+                ("none: uniform " + std::to_string(options.defaultAlbedo) + " (--albedo)").c_str())
+                      << "\n";
+            std::cout << "  emission:  " << describeAttribute(scene.emission(), "none") << "\n";
+            std::cout << "  solution:  " << (scene.isRgb() ? "RGB" : "grey") << " radiosity\n";
+            if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+        } catch (const std::exception& e) {
+            std::cout.flush();
+            std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
+            status = 1;
+        }
+    } else {
+        std::cout << "  surface:   none (no level set, no vec3s grid named 'normal')\n";
+    }
+    if (roles.density) {
+        try {
+            const Cloud cloud = buildCloud(file.grids);
+            float lo = std::numeric_limits<float>::max(), hi = 0.f;
+            for (float s : cloud.extinctionArray()) { lo = std::min(lo, s); hi = std::max(hi, s); }
+            std::cout << "  cloud:     " << withCommas(cloud.size()) << " medium voxels from '"
+                      << cloud.densityName() << "', extinction in [" << lo << ", " << hi
+                      << "] per world unit, max optical depth per voxel "
+                      << hi * cloud.voxelSize() << "\n";
+            std::cout << "  cloud albedo: " << describeAttribute(cloud.albedo(), "none: 1") << "\n";
+        } catch (const std::exception& e) {
+            std::cout.flush();
+            std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
+            status = 1;
+        }
+    } else {
+        std::cout << "  cloud:     none (no float grid named 'density')\n";
+    }
+    std::vector<std::string> passed;
+    for (const auto& g : file.grids) {
+        if (g != roles.surface && g != roles.albedo && g != roles.emission && g != roles.density) {
+            passed.push_back("'" + g->getName() + "'");
+        }
+    }
+    if (!passed.empty()) {
+        std::cout << "  passed through:";
+        for (const auto& p : passed) std::cout << " " << p;
+        std::cout << "\n";
+    }
+    return status;
+}
+
+// ---- surface ---------------------------------------------------------------------------------
+
+int
+runSurface(const Arguments& a)
+{
+    const std::string in = a.positional()[0], out = a.positional()[1];
+    const SceneOptions options = sceneOptions(a);
+    checkOutput(out, {in}, a.flag("overwrite"));
+    const VdbFile file = readInput(in);
+    const std::string label = inputLabel(in);
+    ProgressInterrupter progress(a.flag("quiet"));
+    const Scene scene = forFile(label, [&] { return buildScene(file.grids, options, &progress); });
+    if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+    writeOutput(withGrids(file, sceneToGrids(scene)), out);
+    return 0;
+}
+
+// ---- help ------------------------------------------------------------------------------------
+
+int
+runHelp(const Arguments& a)
+{
+    if (a.flag("markdown")) {
+        std::cout << markdownReference(commands());
+        return 0;
+    }
+    if (a.positional().empty()) {
+        std::cout << overviewHelp(commands());
+        return 0;
+    }
+    for (const auto& c : commands()) {
+        if (c.name == a.positional()[0]) {
+            std::cout << commandHelp(c);
+            return 0;
+        }
+    }
+    throw UsageError("no command '" + a.positional()[0] + "'");
+}
+
+std::string
+builderList()
+{
+    std::string s;
+    for (const auto& b : grids::builders()) s += (s.empty() ? "" : ", ") + b.name;
+    return s;
+}
+
+} // namespace
+
+const std::vector<CommandSpec>&
+commands()
+{
+    static const std::vector<CommandSpec> table = {
+        {"make", "NAME OUT.vdb", 2, 2,
+            "build a canonical scene or cloud (" + builderList() + ")",
+            {{"res", OptionType::Int, "64", "256", "voxels along the longest axis, 1..4096"},
+                {"albedo", OptionType::Float, "scene's", "0.5",
+                    "albedo in [0, 1] (furnaces; single-scattering albedo for clouds)"},
+                {"emission", OptionType::Float, "1", "2", "emitted radiosity of the emitters, >= 0"},
+                {"radius", OptionType::Float, "0.25", "0.2", "disk: emitter radius, world units"},
+                {"height", OptionType::Float, "scene's", "0.25",
+                    "disk, plates: emitter-receiver distance, world units"},
+                {"tau", OptionType::Float, "scene's", "10",
+                    "slab: vertical optical thickness; cumulus: optical diameter"},
+                {"seed", OptionType::Int, "1", "7", "cumulus: shape seed"},
+                kQuiet},
+            {"vdbrad make cornell cornell.vdb --res 128",
+                "vdbrad make furnace-box - --albedo 0.9 | vdbrad info -",
+                "vdbrad make slab slab.vdb --tau 20"},
+            runMake},
+        {"info", "FILE", 1, 1,
+            "describe a file's grids and what the scene contract finds in it",
+            sceneOptionSpecs(),
+            {"vdbrad info scene.vdb", "vdbrad make cornell - | vdbrad info -"},
+            runInfo},
+        {"surface", "IN OUT", 2, 2,
+            "write the surface voxels the solver will see (normal, albedo, emission grids)",
+            concat(sceneOptionSpecs(), {kOverwrite, kQuiet}),
+            {"vdb_tool -read bunny.obj -mesh2ls -write bunny_ls.vdb && "
+             "vdbrad surface bunny_ls.vdb bunny_surface.vdb"},
+            runSurface},
+        {"help", "[COMMAND]", 0, 1, "list commands, or describe one",
+            {{"markdown", OptionType::Flag, "", "", "print the command reference as Markdown"}},
+            {"vdbrad help make", "vdbrad help --markdown"},
+            runHelp},
+    };
+    return table;
+}
+
+int
+runTool(const std::vector<std::string>& args)
+{
+    try {
+        if (args.empty() || args[0] == "--help" || args[0] == "-h") {
+            std::cout << overviewHelp(commands());
+            return args.empty() ? 2 : 0;
+        }
+        if (args[0] == "--version") {
+            std::cout << "vdbrad " << VDBRAD_VERSION_STRING << " (OpenVDB "
+                      << openvdb::getLibraryAbiVersionString() << ")\n";
+            return 0;
+        }
+        const CommandSpec* command = nullptr;
+        std::vector<std::string> names;
+        for (const auto& c : commands()) {
+            names.push_back(c.name);
+            if (c.name == args[0]) command = &c;
+        }
+        if (!command) {
+            std::string msg = "unknown command '" + args[0] + "'";
+            if (auto s = suggest(args[0], names)) msg += "; did you mean '" + *s + "'?";
+            msg += " (see 'vdbrad --help')";
+            throw UsageError(msg);
+        }
+        const std::vector<std::string> rest(args.begin() + 1, args.end());
+        if (std::find_if(rest.begin(), rest.end(), [](const std::string& s) {
+                return s == "--help" || s == "-h"; }) != rest.end()) {
+            std::cout << commandHelp(*command);
+            return 0;
+        }
+        const Arguments parsed = parseCommand(*command, rest);
+        openvdb::initialize();
+        return command->run(parsed);
+    } catch (const UsageError& e) {
+        std::cerr << "vdbrad: error: " << e.what() << "\n";
+        return 2;
+    } catch (const UserError& e) {
+        std::cerr << "vdbrad: error: " << e.what() << "\n";
+        return 1;
+    } catch (const Cancelled&) {
+        std::cerr << "vdbrad: cancelled";
+        if (ProgressInterrupter::signalNumber() != 0) {
+            std::cerr << " by signal " << ProgressInterrupter::signalNumber();
+        }
+        std::cerr << "; no output written\n";
+        return 130;
+    } catch (const std::bad_alloc&) {
+        std::cerr << "vdbrad: error: out of memory\n";
+        return 1;
+    } catch (const std::exception& e) {
+        std::cerr << "vdbrad: error: " << errorMessage(e) << "\n";
+        return 1;
+    }
+}
+
+} // namespace cli
+} // namespace vdbrad

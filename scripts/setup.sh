@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Installs vdbrad's build dependencies from Debian packages (idempotent; run as root or with sudo).
+# libboost-dev / libboost-iostreams-dev: Debian 12's libopenvdb-dev needs them to compile and for
+# its FindOpenVDB.cmake. libopenvdb-tools brings vdb_tool/vdb_print (interop tests), openexr brings
+# exrheader.
+set -euo pipefail
+pkgs=(cmake g++ make libopenvdb-dev libopenvdb-tools libboost-dev libboost-iostreams-dev
+      libopenexr-dev libglm-dev libgtest-dev openexr)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  echo "setup: installing ${missing[*]}" >&2
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+fi

@@ -1,0 +1,316 @@
+// The `vdbrad` command-line tool, driven as a user drives it: pipes, errors, help, interop with
+// Debian's vdb_tool / vdb_print, and the README's command reference.
+#include "vdbrad/vdbrad.h"
+
+#include <openvdb/tools/LevelSetSphere.h>
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+using namespace vdbrad;
+
+namespace {
+
+struct Result
+{
+    int status = -1;
+    std::string out, err;
+    std::vector<std::string> errLines() const
+    {
+        std::vector<std::string> lines;
+        std::istringstream is(err);
+        for (std::string l; std::getline(is, l);) lines.push_back(l);
+        return lines;
+    }
+};
+
+std::string
+slurp(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+bool
+exists(const std::string& path)
+{
+    struct stat st;
+    return ::stat(path.c_str(), &st) == 0;
+}
+
+class CliTest : public ::testing::Test
+{
+protected:
+    static void SetUpTestSuite() { openvdb::initialize(); }
+
+    void SetUp() override
+    {
+        mDir = ::testing::TempDir() + "vdbrad_cli_"
+            + ::testing::UnitTest::GetInstance()->current_test_info()->name() + "/";
+        std::system(("rm -rf '" + mDir + "' && mkdir -p '" + mDir + "'").c_str());
+    }
+
+    std::string path(const std::string& name) const { return mDir + name; }
+
+    /// Run a bash command line where `vdbrad` is the tool under test.
+    Result sh(const std::string& cmd) const
+    {
+        const std::string out = mDir + ".stdout", err = mDir + ".stderr";
+        const std::string full = "cd '" + mDir + "' && vdbrad() { '" VDBRAD_CLI_PATH "' \"$@\"; }; "
+            + "{ " + cmd + "\n} > '" + out + "' 2> '" + err + "' < /dev/null";
+        Result r;
+        const int status = std::system(("bash -c " + quote(full)).c_str());
+        r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        r.out = slurp(out);
+        r.err = slurp(err);
+        return r;
+    }
+
+    static std::string quote(const std::string& s)
+    {
+        std::string q = "'";
+        for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+        return q + "'";
+    }
+
+    std::string mDir;
+};
+
+openvdb::Vec3SGrid::Ptr
+patch(openvdb::Vec3f n = openvdb::Vec3f(0, 1, 0))
+{
+    auto g = openvdb::Vec3SGrid::create();
+    g->setName("normal");
+    g->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
+    for (int x = 0; x < 6; ++x) for (int z = 0; z < 6; ++z) g->tree().setValueOn({x, 0, z}, n);
+    return g;
+}
+
+template<typename GridT>
+typename GridT::Ptr
+like(const openvdb::GridBase& ref, const std::string& name, typename GridT::ValueType v)
+{
+    auto g = GridT::create();
+    g->setName(name);
+    g->setTransform(ref.transform().copy());
+    for (int x = 0; x < 6; ++x) for (int z = 0; z < 6; ++z) g->tree().setValueOn({x, 0, z}, v);
+    return g;
+}
+
+void
+write(const std::string& path, const openvdb::GridPtrVec& grids)
+{
+    VdbFile f;
+    f.grids = grids;
+    writeVdbFile(f, path);
+}
+
+} // namespace
+
+TEST_F(CliTest, MakePipedIntoInfoDescribesTheCornellBox)
+{
+    const Result r = sh("vdbrad make cornell - --res 32 --quiet | vdbrad info -");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("<stdin>: 3 grids; creator = vdbrad " VDBRAD_VERSION_STRING),
+        std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("surface voxels from normal grid 'normal'"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("albedo:    RGB grid"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("emission:  grey grid"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("solution:  RGB radiosity"), std::string::npos) << r.out;
+    EXPECT_EQ(r.err, "");
+}
+
+TEST_F(CliTest, VdbPrintReadsEveryFileVdbradWrites)
+{
+    // libopenvdb-tools is installed by scripts/setup.sh: its absence is a set-up failure.
+    ASSERT_EQ(std::system("command -v vdb_print > /dev/null"), 0) << "vdb_print not installed";
+    for (const char* scene : {"furnace-box", "furnace-sphere", "disk", "plates", "cornell", "slab",
+             "cumulus"}) {
+        const std::string file = std::string(scene) + ".vdb";
+        const Result make = sh(std::string("vdbrad make ") + scene + " " + file + " --res 24 --quiet");
+        ASSERT_EQ(make.status, 0) << scene << ": " << make.err;
+        const Result print = sh("vdb_print -l " + file);
+        // vdb_print exits 0 even on errors: check what it printed instead.
+        EXPECT_EQ(print.err, "") << scene;
+        EXPECT_NE(print.out.find("creator: vdbrad"), std::string::npos) << scene << print.out;
+        const std::string first = std::string(scene) == "slab" || std::string(scene) == "cumulus"
+            ? "Name: density" : "Name: normal";
+        EXPECT_NE(print.out.find(first), std::string::npos) << scene << print.out;
+    }
+    const Result surface = sh("vdbrad surface cornell.vdb explicit.vdb --quiet && "
+                           "vdb_print -l explicit.vdb");
+    ASSERT_EQ(surface.status, 0) << surface.err;
+    EXPECT_NE(surface.out.find("Name: albedo"), std::string::npos);
+}
+
+TEST_F(CliTest, LevelSetFromVdbToolSolvesThroughPipes)
+{
+    ASSERT_EQ(std::system("command -v vdb_tool > /dev/null"), 0) << "vdb_tool not installed";
+    // Debian's vdb_tool writes a level-set sphere of radius 1 world unit, voxel size 0.05 (default
+    // 1/... set explicitly), to stdout; vdbrad extracts its surface from stdin.
+    const Result r = sh("vdb_tool -quiet -sphere r=1 dim=40 -o stdout.vdb | "
+                     "vdbrad surface - - --quiet | vdbrad info -");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("surface voxels from normal grid 'normal'"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("level set"), std::string::npos) << "the level set passes through\n"
+                                                           << r.out;
+    EXPECT_NE(r.err.find("nothing emits"), std::string::npos) << r.err;
+}
+
+TEST_F(CliTest, PassesThroughUnusedGridsAndFileMetadata)
+{
+    auto n = patch();
+    auto temperature = like<openvdb::FloatGrid>(*n, "temperature", 300.f);
+    temperature->insertMeta("units", openvdb::StringMetadata("kelvin"));
+    VdbFile f;
+    f.grids = {n, temperature};
+    f.metadata->insertMeta("creator", openvdb::StringMetadata("Houdini 20.5"));
+    writeVdbFile(f, path("in.vdb"));
+    const Result r = sh("vdbrad surface in.vdb out.vdb --quiet");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const VdbFile out = readVdbFile(path("out.vdb"));
+    EXPECT_EQ(out.metadata->metaValue<std::string>("creator"), "Houdini 20.5");
+    auto tg = openvdb::GridBase::constGrid<openvdb::FloatGrid>(findGrid(out.grids, "temperature"));
+    ASSERT_TRUE(tg);
+    EXPECT_EQ(tg->metaValue<std::string>("units"), "kelvin");
+    EXPECT_EQ(tg->activeVoxelCount(), 36u);
+    EXPECT_EQ(tg->tree().getValue({2, 0, 3}), 300.f);
+    ASSERT_TRUE(findGrid(out.grids, "albedo"));
+}
+
+TEST_F(CliTest, EachMalformedInputGivesOneErrorLineAndNoOutput)
+{
+    auto n = patch();
+    struct Case { std::string name; std::function<void(const std::string&)> make; std::string what; };
+    auto grids = [](openvdb::GridPtrVec g) {
+        return [g](const std::string& p) { write(p, g); };
+    };
+    auto text = [](std::string s) {
+        return [s](const std::string& p) { std::ofstream(p, std::ios::binary) << s; };
+    };
+    const std::string good = serializeVdb([&] { VdbFile f; f.grids = {n}; return f; }());
+    auto shifted = like<openvdb::FloatGrid>(*n, "albedo", 0.5f);
+    shifted->setTransform(openvdb::math::Transform::createLinearTransform(0.2));
+    auto floatNormal = like<openvdb::FloatGrid>(*n, "normal", 1.f);
+    auto empty = openvdb::Vec3SGrid::create();
+    empty->setName("normal");
+    auto nanNormal = patch();
+    nanNormal->tree().setValue({1, 0, 1}, openvdb::Vec3f(NAN, 0, 0));
+    const std::vector<Case> cases = {
+        {"not a VDB file", text("just some text\n"), "not a VDB file"},
+        {"empty file", text(""), "empty file"},
+        {"truncated file", text(good.substr(0, good.size() / 2)), "truncated"},
+        {"missing required grid", grids({like<openvdb::FloatGrid>(*n, "temperature", 1.f)}),
+            "no surface"},
+        {"wrong grid type", grids({floatNormal}), "has type float, expected vec3s"},
+        {"mismatched transforms", grids({n, shifted}), "not on the same transform"},
+        {"NaN normal", grids({nanNormal}), "not finite"},
+        {"albedo above 1", grids({n, like<openvdb::FloatGrid>(*n, "albedo", 1.2f)}),
+            "outside [0, 1]"},
+        {"negative emission", grids({n, like<openvdb::FloatGrid>(*n, "emission", -2.f)}),
+            "outside [0, inf)"},
+        {"infinite emission", grids({n, like<openvdb::FloatGrid>(*n, "emission", INFINITY)}),
+            "is inf"},
+        {"zero-length normals", grids({patch(openvdb::Vec3f(0.f))}), "zero length"},
+        {"empty grid", grids({empty}), "no active voxels"},
+    };
+    for (const Case& c : cases) {
+        const std::string in = path("bad.vdb"), out = path("out.vdb");
+        c.make(in);
+        const std::string before = slurp(in);
+        const Result r = sh("vdbrad surface bad.vdb out.vdb --quiet");
+        EXPECT_EQ(r.status, 1) << c.name;
+        ASSERT_EQ(r.errLines().size(), 1u) << c.name << ":\n" << r.err;
+        EXPECT_EQ(r.errLines()[0].rfind("vdbrad: error: bad.vdb: ", 0), 0u) << c.name << ": " << r.err;
+        EXPECT_NE(r.err.find(c.what), std::string::npos) << c.name << ": " << r.err;
+        EXPECT_FALSE(exists(out)) << c.name;
+        EXPECT_EQ(slurp(in), before) << c.name << ": input changed";
+        EXPECT_EQ(r.out, "") << c.name;
+        // Through a pipe: same line with <stdin>, nothing on stdout.
+        const Result p = sh("cat bad.vdb | vdbrad surface - - --quiet");
+        EXPECT_EQ(p.status, 1) << c.name;
+        EXPECT_EQ(p.err.rfind("vdbrad: error: <stdin>: ", 0), 0u) << c.name << ": " << p.err;
+        EXPECT_EQ(p.out, "") << c.name << ": partial output on stdout";
+    }
+    const Result missing = sh("vdbrad info nothing-here.vdb");
+    EXPECT_EQ(missing.status, 1);
+    EXPECT_EQ(missing.err.rfind("vdbrad: error: nothing-here.vdb: cannot open", 0), 0u)
+        << missing.err;
+}
+
+TEST_F(CliTest, OutputEqualToInputNeedsOverwrite)
+{
+    write(path("scene.vdb"), {patch()});
+    const std::string before = slurp(path("scene.vdb"));
+    const Result refused = sh("vdbrad surface scene.vdb ./scene.vdb");
+    EXPECT_EQ(refused.status, 2);
+    EXPECT_NE(refused.err.find("pass --overwrite"), std::string::npos) << refused.err;
+    EXPECT_EQ(slurp(path("scene.vdb")), before);
+    const Result ok = sh("vdbrad surface scene.vdb scene.vdb --overwrite --quiet");
+    ASSERT_EQ(ok.status, 0) << ok.err;
+    EXPECT_TRUE(findGrid(readVdbFile(path("scene.vdb")).grids, "albedo"));
+}
+
+TEST_F(CliTest, RefusesToWriteBinaryToATerminal)
+{
+    // `script` gives the tool a pseudo-terminal as standard output.
+    ASSERT_EQ(std::system("command -v script > /dev/null"), 0);
+    const Result r = sh("script -qec \"'" VDBRAD_CLI_PATH "' make cornell - --res 8\" /dev/null");
+    EXPECT_NE(r.out.find("refusing to write VDB data to a terminal"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("VDB \x0a"), std::string::npos);
+}
+
+TEST_F(CliTest, CommandLineMistakesFailFastWithSuggestions)
+{
+    Result r = sh("vdbrad mkae cornell x.vdb");
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("did you mean 'make'?"), std::string::npos) << r.err;
+    r = sh("vdbrad make cornell x.vdb --rez 32");
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("did you mean '--res'?"), std::string::npos) << r.err;
+    r = sh("vdbrad make cornel x.vdb");
+    EXPECT_NE(r.err.find("did you mean 'cornell'?"), std::string::npos) << r.err;
+    r = sh("vdbrad make cornell x.vdb --res 12abc");
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("'12abc' is not an integer"), std::string::npos) << r.err;
+    r = sh("vdbrad make cornell x.vdb --res 0");
+    EXPECT_NE(r.err.find("--res must be in [1, 4096]"), std::string::npos) << r.err;
+    r = sh("vdbrad info a.vdb b.vdb");
+    EXPECT_EQ(r.status, 2);
+    r = sh("vdbrad make furnace-box x.vdb --albedo 1.5");
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("albedo"), std::string::npos) << r.err;
+    EXPECT_FALSE(exists(path("x.vdb")));
+    for (const auto& line : r.errLines()) EXPECT_EQ(line.rfind("vdbrad: error: ", 0), 0u) << line;
+}
+
+TEST_F(CliTest, EveryCommandHasHelpWithExamples)
+{
+    const Result overview = sh("vdbrad --help");
+    ASSERT_EQ(overview.status, 0);
+    for (const char* c : {"make", "info", "surface", "help"}) {
+        EXPECT_NE(overview.out.find(std::string("  ") + c), std::string::npos) << c;
+        const Result h = sh(std::string("vdbrad ") + c + " --help");
+        EXPECT_EQ(h.status, 0) << c;
+        EXPECT_EQ(h.out.rfind(std::string("usage: vdbrad ") + c, 0), 0u) << h.out;
+        EXPECT_NE(h.out.find("examples:"), std::string::npos) << c;
+    }
+}
+
+TEST_F(CliTest, ReadmeCommandReferenceIsGeneratedFromTheTable)
+{
+    const Result r = sh("vdbrad help --markdown");
+    ASSERT_EQ(r.status, 0);
+    const std::string readme = slurp(VDBRAD_SOURCE_DIR "/README.md");
+    const std::string begin = "<!-- commands:begin (vdbrad help --markdown) -->\n";
+    const std::string end = "<!-- commands:end -->";
+    const size_t b = readme.find(begin), e = readme.find(end);
+    ASSERT_NE(b, std::string::npos);
+    ASSERT_NE(e, std::string::npos);
+    EXPECT_EQ(readme.substr(b + begin.size(), e - b - begin.size()), r.out)
+        << "README's command reference is stale: regenerate it with `vdbrad help --markdown`";
+}

@@ -1,0 +1,150 @@
+// GridIO: whole-file reads from memory, errors on malformed bytes, atomic writes, round trips.
+#include "vdbrad/vdbrad.h"
+
+#include <openvdb/tools/LevelSetSphere.h>
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sys/stat.h>
+#include <dirent.h>
+
+using namespace vdbrad;
+
+namespace {
+
+class GridIOTest : public ::testing::Test
+{
+protected:
+    static void SetUpTestSuite() { openvdb::initialize(); }
+
+    std::string path(const std::string& name) const
+    {
+        return ::testing::TempDir() + "vdbrad_io_" + name;
+    }
+
+    static VdbFile sample()
+    {
+        VdbFile f;
+        auto ls = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(8.f, {0, 0, 0}, 0.5f);
+        ls->setName("surface");
+        ls->insertMeta("houdini:note", openvdb::StringMetadata("keep me"));
+        auto ids = openvdb::Int32Grid::create(-1);
+        ids->setName("ids");
+        ids->tree().setValueOn(openvdb::Coord(1, 2, 3), 42);
+        auto vel = openvdb::Vec3SGrid::create();
+        vel->setName("vel");
+        vel->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
+        vel->tree().setValueOn(openvdb::Coord(-5, 0, 9), openvdb::Vec3f(1, 2, 3));
+        f.grids = {ls, ids, vel};
+        f.metadata->insertMeta("creator", openvdb::StringMetadata("Houdini 20.0"));
+        f.metadata->insertMeta("frame", openvdb::Int32Metadata(12));
+        return f;
+    }
+
+    static size_t filesIn(const std::string& dir, const std::string& prefix)
+    {
+        size_t n = 0;
+        if (DIR* d = ::opendir(dir.c_str())) {
+            while (dirent* e = ::readdir(d)) {
+                if (std::string(e->d_name).find(prefix) != std::string::npos) ++n;
+            }
+            ::closedir(d);
+        }
+        return n;
+    }
+};
+
+} // namespace
+
+TEST_F(GridIOTest, RoundTripKeepsGridsValuesAndMetadata)
+{
+    const VdbFile in = sample();
+    writeVdbFile(in, path("roundtrip.vdb"));
+    const VdbFile out = readVdbFile(path("roundtrip.vdb"));
+    ASSERT_EQ(out.grids.size(), 3u);
+    EXPECT_EQ(out.metadata->metaValue<std::string>("creator"), "Houdini 20.0");
+    EXPECT_EQ(out.metadata->metaValue<int32_t>("frame"), 12);
+    for (size_t i = 0; i < 3; ++i) {
+        EXPECT_EQ(out.grids[i]->getName(), in.grids[i]->getName());
+        EXPECT_EQ(out.grids[i]->valueType(), in.grids[i]->valueType());
+        EXPECT_EQ(out.grids[i]->transform(), in.grids[i]->transform());
+        EXPECT_EQ(out.grids[i]->getGridClass(), in.grids[i]->getGridClass());
+        EXPECT_EQ(out.grids[i]->getVectorType(), in.grids[i]->getVectorType());
+        EXPECT_EQ(out.grids[i]->activeVoxelCount(), in.grids[i]->activeVoxelCount());
+        // Every metadata of the input survives (the writer adds file_* statistics of its own).
+        for (auto m = in.grids[i]->beginMeta(); m != in.grids[i]->endMeta(); ++m) {
+            ASSERT_TRUE((*out.grids[i])[m->first]) << m->first;
+            EXPECT_EQ((*out.grids[i])[m->first]->str(), m->second->str()) << m->first;
+        }
+    }
+    auto a = openvdb::gridPtrCast<openvdb::FloatGrid>(in.grids[0]);
+    auto b = openvdb::gridPtrCast<openvdb::FloatGrid>(out.grids[0]);
+    for (auto it = a->cbeginValueAll(); it; ++it) {
+        ASSERT_EQ(b->tree().getValue(it.getCoord()), *it);
+    }
+    EXPECT_EQ(openvdb::gridPtrCast<openvdb::Int32Grid>(out.grids[1])->tree().getValue(
+        openvdb::Coord(1, 2, 3)), 42);
+
+    // Stream and file paths produce the same parse.
+    std::ifstream s(path("roundtrip.vdb"), std::ios::binary);
+    EXPECT_EQ(readVdbStream(s).grids.size(), 3u);
+}
+
+TEST_F(GridIOTest, MalformedBytesGiveIoErrors)
+{
+    const std::string good = serializeVdb(sample());
+    auto message = [](const std::string& bytes) {
+        try {
+            parseVdb(bytes);
+        } catch (const openvdb::IoError& e) {
+            return errorMessage(e);
+        }
+        return std::string("no error");
+    };
+    EXPECT_EQ(message(""), "empty file");
+    EXPECT_EQ(message("hello world, not a vdb"), "not a VDB file (bad magic number)");
+    EXPECT_EQ(message(good.substr(0, 4)), "not a VDB file (bad magic number)");
+    // Truncation anywhere (inside the header, the metadata, the grid descriptors, the voxel data)
+    // must be an IoError, never a silent "0 grids" or a partial read.
+    std::vector<size_t> cuts;
+    for (size_t c = 8; c < 700; ++c) cuts.push_back(c);   // header, metadata, descriptors
+    for (size_t k = 1; k < 64; ++k) cuts.push_back(good.size() * k / 64);
+    for (size_t c = good.size() - 64; c < good.size(); ++c) cuts.push_back(c);
+    for (size_t cut : cuts) {
+        EXPECT_THROW(parseVdb(good.substr(0, cut)), openvdb::IoError) << "cut at " << cut;
+    }
+    EXPECT_EQ(parseVdb(good).grids.size(), 3u);
+}
+
+TEST_F(GridIOTest, AtomicWriteNeverLeavesPartialFiles)
+{
+    const std::string target = path("atomic.vdb");
+    writeFileAtomic(target, "old contents");
+    // A failing write (missing folder) throws and leaves nothing behind.
+    EXPECT_THROW(writeFileAtomic(path("missing/dir/x.vdb"), "x"), openvdb::IoError);
+    // Replacing works and leaves no temporary file in the folder.
+    writeVdbFile(sample(), target);
+    EXPECT_EQ(readVdbFile(target).grids.size(), 3u);
+    EXPECT_EQ(filesIn(::testing::TempDir(), ".vdbrad_io_atomic.vdb.vdbrad-"), 0u);
+    struct stat st;
+    ASSERT_EQ(::stat(target.c_str(), &st), 0);
+    EXPECT_TRUE(st.st_mode & S_IRGRP) << "output must not keep mkstemp's 0600 mode";
+    EXPECT_THROW(readVdbFile(path("does-not-exist.vdb")), openvdb::IoError);
+    EXPECT_THROW(readVdbFile(::testing::TempDir()), openvdb::IoError);
+}
+
+TEST_F(GridIOTest, WithGridsReplacesByNameAndKeepsTheRest)
+{
+    const VdbFile in = sample();
+    auto replacement = openvdb::Int32Grid::create(0);
+    replacement->setName("ids");
+    auto added = openvdb::FloatGrid::create();
+    added->setName("radiosity");
+    const VdbFile out = withGrids(in, {replacement, added});
+    ASSERT_EQ(out.grids.size(), 4u);
+    EXPECT_EQ(out.grids[1], replacement);
+    EXPECT_EQ(out.grids[0], in.grids[0]);
+    EXPECT_EQ(out.grids[3], added);
+    EXPECT_EQ(out.metadata->metaValue<std::string>("creator"), "Houdini 20.0");
+}

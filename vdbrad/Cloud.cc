@@ -1,0 +1,74 @@
+#include "vdbrad/Cloud.h"
+
+#include "vdbrad/Errors.h"
+
+#include <cmath>
+
+namespace vdbrad {
+
+Cloud::Cloud(openvdb::math::Transform::Ptr transform, VoxelIndex voxels,
+    std::vector<float> extinction, Attribute albedo, std::string densityName)
+    : mTransform(std::move(transform))
+    , mVoxels(std::move(voxels))
+    , mExtinction(std::move(extinction))
+    , mAlbedo(std::move(albedo))
+    , mDensityName(std::move(densityName))
+{
+}
+
+size_t
+Cloud::memUsage() const
+{
+    return mVoxels.size() * (sizeof(openvdb::Coord) + sizeof(float))
+        + size_t(mVoxels.tree().memUsage()) + mAlbedo.memUsage();
+}
+
+Cloud
+buildCloud(const openvdb::GridPtrVec& grids, const CloudOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    if (!(options.extinctionScale > 0.f) || !std::isfinite(options.extinctionScale)) {
+        OPENVDB_THROW(openvdb::ValueError, "extinction scale must be positive and finite, got "
+            << options.extinctionScale);
+    }
+    if (!(options.defaultAlbedo >= 0.f && options.defaultAlbedo <= 1.f)) {
+        OPENVDB_THROW(openvdb::ValueError, "albedo must be in [0, 1], got "
+            << options.defaultAlbedo);
+    }
+    const GridRoles roles = identifyRoles(grids, "", options.density);
+    if (!roles.density) {
+        OPENVDB_THROW(openvdb::KeyError, "no cloud: expected a float grid named '"
+            << options.density << "'");
+    }
+    const auto& density = static_cast<const openvdb::FloatGrid&>(*roles.density);
+    checkTransform(density);
+    if (roles.albedo) checkSameTransform(*roles.albedo, density);
+    if (density.activeVoxelCount() == 0) {
+        OPENVDB_THROW(openvdb::ValueError, "density grid '" << density.getName()
+            << "' has no active voxels");
+    }
+
+    VoxelIndex index(openvdb::MaskTree(density.tree(), false, openvdb::TopologyCopy()));
+    if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled("cloud build");
+
+    // Density is validated through the same sampler as the attributes, then scaled; the scale
+    // is applied in double so a huge scale overflows to a clear error rather than to inf.
+    const Attribute sampled = Attribute::sample(density, index, names::kDensity, 0.f);
+    std::vector<float> extinction(index.size());
+    for (size_t i = 0; i < index.size(); ++i) {
+        const double s = double(sampled.grey(i)) * options.extinctionScale;
+        if (s > double(std::numeric_limits<float>::max())) {
+            OPENVDB_THROW(openvdb::ValueError, "extinction at voxel " << formatCoord(index.coord(i))
+                << " overflows: density " << sampled.grey(i) << " x scale "
+                << options.extinctionScale);
+        }
+        extinction[i] = float(s);
+    }
+    Attribute albedo = roles.albedo
+        ? Attribute::sample(*roles.albedo, index, names::kAlbedo, 0.f, 1.f)
+        : Attribute(options.defaultAlbedo);
+    return Cloud(density.transform().copy(), std::move(index), std::move(extinction),
+        std::move(albedo), density.getName());
+}
+
+} // namespace vdbrad

@@ -1,0 +1,123 @@
+#include "vdbrad/Scene.h"
+
+#include "vdbrad/Errors.h"
+#include "vdbrad/SurfaceExtraction.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+
+namespace vdbrad {
+
+Scene::Scene(openvdb::math::Transform::Ptr transform, VoxelIndex voxels,
+    std::vector<openvdb::Vec3f> normals, Attribute albedo, Attribute emission,
+    std::string surfaceName, GridRoles::SurfaceKind kind)
+    : mTransform(std::move(transform))
+    , mVoxels(std::move(voxels))
+    , mNormals(std::move(normals))
+    , mAlbedo(std::move(albedo))
+    , mEmission(std::move(emission))
+    , mSurfaceName(std::move(surfaceName))
+    , mKind(kind)
+{
+}
+
+openvdb::Vec3f
+Scene::worldNormal(size_t i) const
+{
+    // Normals are covariant: index -> world applies the inverse Jacobian transpose.
+    const openvdb::Vec3d n = mTransform->baseMap()->applyIJT(openvdb::Vec3d(mNormals[i]));
+    return openvdb::Vec3f(n.unit());
+}
+
+size_t
+Scene::memUsage() const
+{
+    return mVoxels.size() * (sizeof(openvdb::Coord) + sizeof(openvdb::Vec3f))
+        + size_t(mVoxels.tree().memUsage()) + mAlbedo.memUsage() + mEmission.memUsage();
+}
+
+namespace {
+
+// Index-space unit normals from a `normal` grid of world-space vectors.
+std::vector<openvdb::Vec3f>
+normalGridNormals(const openvdb::Vec3SGrid& grid, const VoxelIndex& index)
+{
+    const openvdb::math::MapBase::ConstPtr map = grid.transform().baseMap();
+    std::vector<openvdb::Vec3f> normals(index.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, index.leafCount()),
+        [&](const tbb::blocked_range<size_t>& r) {
+            auto acc = grid.getConstAccessor();
+            for (size_t n = r.begin(); n != r.end(); ++n) {
+                for (size_t i = index.leafBegin(n); i < index.leafBegin(n + 1); ++i) {
+                    const openvdb::Vec3f w = acc.getValue(index.coord(i));
+                    const double len = w.length();
+                    if (!std::isfinite(len) || len < 1e-6) {
+                        OPENVDB_THROW(openvdb::ValueError, "normal at voxel "
+                            << formatCoord(index.coord(i)) << " is " << w
+                            << (std::isfinite(len) ? " (zero length)" : " (not finite)"));
+                    }
+                    // World -> index for a covariant vector is the Jacobian transpose.
+                    normals[i] = openvdb::Vec3f(map->applyJT(openvdb::Vec3d(w)).unit());
+                }
+            }
+        });
+    return normals;
+}
+
+} // namespace
+
+Scene
+buildScene(const openvdb::GridPtrVec& grids, const SceneOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    if (!(options.defaultAlbedo >= 0.f && options.defaultAlbedo <= 1.f)) {
+        OPENVDB_THROW(openvdb::ValueError, "albedo must be in [0, 1], got "
+            << options.defaultAlbedo);
+    }
+    const GridRoles roles = identifyRoles(grids, options.surface);
+    if (!roles.surface) {
+        OPENVDB_THROW(openvdb::KeyError, "no surface: expected a level-set float grid or a vec3s "
+            "grid named 'normal'");
+    }
+    const openvdb::GridBase& surface = *roles.surface;
+    checkTransform(surface);
+    if (surface.activeVoxelCount() == 0) {
+        OPENVDB_THROW(openvdb::ValueError, "surface grid '" << surface.getName()
+            << "' has no active voxels");
+    }
+    for (const auto& g : {roles.albedo, roles.emission}) {
+        if (g) checkSameTransform(*g, surface);
+    }
+
+    VoxelIndex index;
+    std::vector<openvdb::Vec3f> normals;
+    if (roles.surfaceKind == GridRoles::SurfaceKind::LevelSet) {
+        const auto& ls = static_cast<const openvdb::FloatGrid&>(surface);
+        openvdb::MaskTree::Ptr mask = extractSurfaceVoxels(ls, options.separation, interrupt);
+        index = VoxelIndex(*mask);
+        if (index.empty()) {
+            OPENVDB_THROW(openvdb::ValueError, "level set '" << surface.getName()
+                << "' has no zero crossing: no surface voxels");
+        }
+        normals = levelSetNormals(ls, index);
+    } else {
+        const auto& ng = static_cast<const openvdb::Vec3SGrid&>(surface);
+        index = VoxelIndex(openvdb::MaskTree(ng.tree(), false, openvdb::TopologyCopy()));
+        normals = normalGridNormals(ng, index);
+    }
+    if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled("scene build");
+
+    Attribute albedo = roles.albedo
+        ? Attribute::sample(*roles.albedo, index, names::kAlbedo, 0.f, 1.f)
+        : Attribute(options.defaultAlbedo);
+    Attribute emission = roles.emission
+        ? Attribute::sample(*roles.emission, index, names::kEmission, 0.f)
+        : Attribute(0.f);
+
+    return Scene(surface.transform().copy(), std::move(index), std::move(normals),
+        std::move(albedo), std::move(emission), surface.getName(), roles.surfaceKind);
+}
+
+} // namespace vdbrad
