@@ -3,7 +3,10 @@
 #include "Progress.h"
 
 #include "grids/CanonicalGrids.h"
+#include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
+
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -373,6 +376,65 @@ runSurface(const Arguments& a)
     return 0;
 }
 
+// ---- solve -----------------------------------------------------------------------------------
+
+int
+runSolve(const Arguments& a)
+{
+    const std::string in = a.positional()[0], out = a.positional()[1];
+    const SceneOptions sceneOpts = sceneOptions(a);
+    RadiosityOptions o;
+    o.directions = a.getInt("directions");
+    o.maxIterations = a.getInt("iterations");
+    o.tolerance = a.getFloat("tolerance");
+    o.occlusionDepth = float(a.getFloat("occlusion-depth"));
+    const std::string lines = a.getString("lines");
+    if (lines == "naive") o.lines = LineType::Naive;
+    else if (lines == "standard") o.lines = LineType::Standard;
+    else throw UsageError("--lines must be naive or standard, got '" + lines + "'");
+    if (o.directions < 1 || size_t(o.directions) > DirectionSet::maxCount()) {
+        throw UsageError("--directions must be in [1, " + std::to_string(DirectionSet::maxCount())
+            + "], got " + a.getString("directions"));
+    }
+    if (o.maxIterations < 1) throw UsageError("--iterations must be >= 1");
+    if (!(o.tolerance >= 0.0)) throw UsageError("--tolerance must be >= 0");
+    if (!(o.occlusionDepth > 0.f)) throw UsageError("--occlusion-depth must be > 0");
+    const int threads = a.getInt("threads");
+    if (threads < 0) throw UsageError("--threads must be >= 0 (0: all cores)");
+    checkOutput(out, {in}, a.flag("overwrite"));
+
+    std::unique_ptr<tbb::global_control> limit;
+    if (threads > 0) {
+        limit.reset(new tbb::global_control(tbb::global_control::max_allowed_parallelism,
+            size_t(threads)));
+    }
+    const VdbFile file = readInput(in);
+    const std::string label = inputLabel(in);
+    const bool quiet = a.flag("quiet");
+    ProgressInterrupter progress(quiet);
+    const Scene scene = forFile(label, [&] { return buildScene(file.grids, sceneOpts, &progress); });
+    if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+    RadiositySolver solver(scene, o);
+    if (!quiet) {
+        std::cerr << "solving " << withCommas(scene.size()) << " voxels, "
+                  << solver.directions().size() << " directions (nearest to " << o.directions
+                  << "), " << lines << " lines" << (scene.isRgb() ? ", RGB" : "") << "\n";
+    }
+    while (!solver.converged() && solver.iterationCount() < o.maxIterations) {
+        const std::string step = "iteration " + std::to_string(solver.iterationCount() + 1);
+        progress.start(step.c_str());
+        std::ostringstream result;
+        result << "residual " << solver.iterate(&progress);
+        progress.end(result.str());
+    }
+    if (!quiet && !solver.converged()) {
+        warn(label, "stopped at --iterations " + std::to_string(o.maxIterations)
+            + " with residual " + std::to_string(solver.residuals().back()) + " > --tolerance");
+    }
+    writeOutput(withGrids(file, {solver.grid()}), out);
+    return 0;
+}
+
 // ---- help ------------------------------------------------------------------------------------
 
 int
@@ -437,6 +499,25 @@ commands()
             {"vdb_tool -read bunny.obj -mesh2ls -write bunny_ls.vdb && "
              "vdbrad surface bunny_ls.vdb bunny_surface.vdb"},
             runSurface},
+        {"solve", "IN OUT", 2, 2,
+            "solve the radiosity of a surface scene; writes the input's grids plus `radiosity`",
+            concat(sceneOptionSpecs(), {
+                {"directions", OptionType::Int, "300", "1000",
+                    "direction pairs swept per iteration (the nearest count a discrete sphere "
+                    "gives is used)"},
+                {"iterations", OptionType::Int, "200", "50", "iteration cap, >= 1"},
+                {"tolerance", OptionType::Float, "1e-5", "1e-4",
+                    "stop when max|B' - B| / max|B'| falls below this"},
+                {"lines", OptionType::String, "naive", "standard",
+                    "digital lines: naive (26-connected) or standard (6-connected)"},
+                {"occlusion-depth", OptionType::Float, "1", "1.5",
+                    "voxels: a receiver this far behind the wall voxel before it is hidden"},
+                {"threads", OptionType::Int, "0", "2", "worker threads (0: all cores); the "
+                    "result does not depend on it"},
+                kOverwrite, kQuiet}),
+            {"vdbrad make cornell - | vdbrad solve - cornell_lit.vdb --directions 1000",
+                "vdbrad solve scene.vdb out.vdb --lines standard --tolerance 1e-4"},
+            runSolve},
         {"help", "[COMMAND]", 0, 1, "list commands, or describe one",
             {{"markdown", OptionType::Flag, "", "", "print the command reference as Markdown"}},
             {"vdbrad help make", "vdbrad help --markdown"},

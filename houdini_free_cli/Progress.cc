@@ -50,20 +50,25 @@ ProgressInterrupter::start(const char* name)
     mName = name ? name : "working";
     mLastPercent = -1;
     mStart = mLastDraw = std::chrono::steady_clock::now();
-    if (mQuiet) return;
-    if (mTerminal) std::fprintf(stderr, "\r%s...", mName.c_str());
-    else std::fprintf(stderr, "%s...\n", mName.c_str());
+    if (mQuiet || !mTerminal) return;
+    std::fprintf(stderr, "\r\033[K%s...", mName.c_str());
     std::fflush(stderr);
 }
 
 void
 ProgressInterrupter::end()
 {
+    end("done");
+}
+
+void
+ProgressInterrupter::end(const std::string& result)
+{
     std::lock_guard<std::mutex> lock(gDrawMutex);
     if (mQuiet) return;
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count();
-    if (mTerminal) std::fprintf(stderr, "\r\033[K%s: done in %.2f s\n", mName.c_str(), s);
-    else std::fprintf(stderr, "%s: done in %.2f s\n", mName.c_str(), s);
+    std::fprintf(stderr, "%s%s: %s in %.2f s\n", mTerminal ? "\r\033[K" : "", mName.c_str(),
+        result.c_str(), s);
     std::fflush(stderr);
 }
 
@@ -78,18 +83,15 @@ void
 ProgressInterrupter::draw(int percent)
 {
     // Called from worker threads: serialise, and redraw at most ~10 times a second on a terminal,
-    // every 10% in a log.
+    // nothing in a log.
     std::lock_guard<std::mutex> lock(gDrawMutex);
     const auto now = std::chrono::steady_clock::now();
-    if (mTerminal) {
-        if (percent == mLastPercent || now - mLastDraw < std::chrono::milliseconds(100)) return;
-        const int width = 30, filled = percent * width / 100;
-        std::fprintf(stderr, "\r%s [%s%s] %3d%%", mName.c_str(), std::string(filled, '#').c_str(),
-            std::string(width - filled, ' ').c_str(), percent);
-    } else {
-        if (percent / 10 == mLastPercent / 10) return;
-        std::fprintf(stderr, "%s: %d%%\n", mName.c_str(), percent);
-    }
+    // Logs get one line per step (end()); only a terminal gets the live bar.
+    if (!mTerminal) return;
+    if (percent == mLastPercent || now - mLastDraw < std::chrono::milliseconds(100)) return;
+    const int width = 30, filled = percent * width / 100;
+    std::fprintf(stderr, "\r%s [%s%s] %3d%%", mName.c_str(), std::string(filled, '#').c_str(),
+        std::string(width - filled, ' ').c_str(), percent);
     std::fflush(stderr);
     mLastPercent = percent;
     mLastDraw = now;

@@ -1,6 +1,6 @@
 // Progress: the interrupter the tool hands to the library (util::NullInterrupter interface).
 //
-// It draws a bar on stderr when stderr is a terminal and plain "step... done" lines otherwise
+// It draws a bar on stderr when stderr is a terminal and one line per finished step otherwise
 // (farm logs), stays silent with --quiet, and turns SIGINT/SIGTERM into cancellation: the first
 // signal makes wasInterrupted() true so the library unwinds and the tool leaves no output; a
 // second one kills the process the default way.
@@ -22,6 +22,8 @@ public:
 
     void start(const char* name = nullptr) override;
     void end() override;
+    /// End the current step with a short result ("residual 1e-5") on the same line.
+    void end(const std::string& result);
     bool wasInterrupted(int percent = -1) override;
 
     /// True once SIGINT or SIGTERM has arrived.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The main job on the built-in default scene: installs the dependencies, builds vdbrad, builds the
-# Cornell box and describes it. Outputs go to out/ (override with VDBRAD_OUT).
+# Cornell box, solves its radiosity and describes the result. Outputs go to out/ (VDBRAD_OUT).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -9,5 +9,7 @@ cmake --build build -j"$(nproc)" --target vdbrad_cli
 out=${VDBRAD_OUT:-out}
 mkdir -p "$out"
 ./build/vdbrad make cornell "$out/cornell.vdb" --res "${VDBRAD_RES:-128}"
-./build/vdbrad info "$out/cornell.vdb"
-echo "main-job: wrote $out/cornell.vdb" >&2
+./build/vdbrad solve "$out/cornell.vdb" "$out/cornell_radiosity.vdb" \
+  --directions "${VDBRAD_DIRECTIONS:-300}" --tolerance 1e-4
+./build/vdbrad info "$out/cornell_radiosity.vdb"
+echo "main-job: wrote $out/cornell.vdb and $out/cornell_radiosity.vdb" >&2

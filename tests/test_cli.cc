@@ -292,7 +292,7 @@ TEST_F(CliTest, EveryCommandHasHelpWithExamples)
 {
     const Result overview = sh("vdbrad --help");
     ASSERT_EQ(overview.status, 0);
-    for (const char* c : {"make", "info", "surface", "help"}) {
+    for (const char* c : {"make", "info", "surface", "solve", "help"}) {
         EXPECT_NE(overview.out.find(std::string("  ") + c), std::string::npos) << c;
         const Result h = sh(std::string("vdbrad ") + c + " --help");
         EXPECT_EQ(h.status, 0) << c;
@@ -313,4 +313,41 @@ TEST_F(CliTest, ReadmeCommandReferenceIsGeneratedFromTheTable)
     ASSERT_NE(e, std::string::npos);
     EXPECT_EQ(readme.substr(b + begin.size(), e - b - begin.size()), r.out)
         << "README's command reference is stale: regenerate it with `vdbrad help --markdown`";
+}
+
+TEST_F(CliTest, SolveWritesRadiosityWithMetadataAndPassesGridsThrough)
+{
+    const Result r = sh("vdbrad make furnace-box - --res 10 --albedo 0.5 --quiet | "
+                        "vdbrad solve - out.vdb --directions 50 --tolerance 1e-7 --quiet");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const VdbFile out = readVdbFile(path("out.vdb"));
+    ASSERT_EQ(out.grids.size(), 4u);   // normal, albedo, emission passed through + radiosity
+    auto g = openvdb::GridBase::constGrid<openvdb::FloatGrid>(findGrid(out.grids, "radiosity"));
+    ASSERT_TRUE(g);
+    EXPECT_EQ(g->activeVoxelCount(), 10u * 10u * 10u - 8u * 8u * 8u);
+    for (auto it = g->cbeginValueOn(); it; ++it) {
+        ASSERT_NEAR(*it, 2.f, 2e-4f);   // furnace: E / (1 - rho), 1e-4 relative
+    }
+    EXPECT_EQ(g->metaValue<int32_t>("vdbrad:voxels"), 488);
+    EXPECT_EQ(g->metaValue<int32_t>("vdbrad:directions"), 45);   // nearest sphere count to 50
+    EXPECT_GT(g->metaValue<int32_t>("vdbrad:iterations"), 10);
+    EXPECT_LT(g->metaValue<float>("vdbrad:residual"), 1e-7f);
+    EXPECT_EQ(g->metaValue<std::string>("vdbrad:lines"), "naive");
+    EXPECT_EQ(g->metaValue<std::string>("vdbrad:version"), VDBRAD_VERSION_STRING);
+}
+
+TEST_F(CliTest, InterruptedSolveExitsCleanlyWithoutOutput)
+{
+    const Result made = sh("vdbrad make cornell big.vdb --res 96 --quiet");
+    ASSERT_EQ(made.status, 0) << made.err;
+    // SIGINT a second into a solve that would take far longer.
+    // (The tool itself, not the shell function wrapping it, must get the signal.)
+    const Result r = sh("'" VDBRAD_CLI_PATH "' solve big.vdb out.vdb --directions 5000 "
+                        "--iterations 50 & pid=$!; sleep 1; kill -INT $pid; wait $pid");
+    EXPECT_EQ(r.status, 130) << r.err;
+    EXPECT_NE(r.err.find("vdbrad: cancelled by signal 2; no output written"), std::string::npos)
+        << r.err;
+    EXPECT_FALSE(exists(path("out.vdb")));
+    EXPECT_EQ(std::system(("ls -a '" + mDir + "' | grep -q vdbrad-").c_str()) == 0, false)
+        << "a temporary file was left behind";
 }

@@ -11,6 +11,7 @@
 #include <climits>
 #include <cmath>
 #include <cstdint>
+#include <map>
 #include <numeric>
 #include <random>
 #include <set>
@@ -570,3 +571,53 @@ TEST(LinePartition, LineKeyOrderEqualityAndHash)
 }
 
 } // namespace
+
+TEST(LinePartition, CentredPartitionsAreMirrorImagesAndStillLines)
+{
+    // centreOn(min + max): reflecting a voxel through the centre of a box along any set of axes
+    // maps the lines of sigma onto the lines of the reflected direction (as a bijection), and a
+    // naive line still holds at most one voxel per major coordinate. Exhaustive over a 13 x 9 x 11
+    // box (odd and even extents, so both parities of the centre occur) for random directions.
+    std::mt19937 rng(77);
+    std::uniform_int_distribution<int> comp(-7, 7);
+    const Coord lo(-3, 2, 0), hi(9, 10, 10);
+    int tested = 0;
+    while (tested < 60) {
+        const Coord sigma(comp(rng), comp(rng), comp(rng));
+        if (sigma == Coord(0)) continue;
+        if (std::gcd(std::gcd(std::abs(sigma.x()), std::abs(sigma.y())), std::abs(sigma.z())) != 1) {
+            continue;
+        }
+        ++tested;
+        for (LineType type : {LineType::Naive, LineType::Standard}) {
+            for (int flips = 1; flips < 8; ++flips) {
+                const Coord mirrored((flips & 1) ? -sigma.x() : sigma.x(),
+                    (flips & 2) ? -sigma.y() : sigma.y(), (flips & 4) ? -sigma.z() : sigma.z());
+                LinePartition p(sigma, type), q(mirrored, type);
+                p.centreOn(lo + hi);
+                q.centreOn(lo + hi);
+                std::map<std::pair<I64, I64>, std::pair<I64, I64>> forward, backward;
+                std::map<std::pair<I64, I64>, std::set<I64>> majors;
+                for (int x = lo.x(); x <= hi.x(); ++x) for (int y = lo.y(); y <= hi.y(); ++y) {
+                    for (int z = lo.z(); z <= hi.z(); ++z) {
+                        const Coord c(x, y, z);
+                        const Coord m((flips & 1) ? lo.x() + hi.x() - x : x,
+                            (flips & 2) ? lo.y() + hi.y() - y : y,
+                            (flips & 4) ? lo.z() + hi.z() - z : z);
+                        const LineKey a = p.key(c), b = q.key(m);
+                        const auto ka = std::make_pair(a.i, a.j), kb = std::make_pair(b.i, b.j);
+                        auto f = forward.emplace(ka, kb).first;
+                        ASSERT_EQ(f->second, kb) << sigma << " flips " << flips;
+                        auto g = backward.emplace(kb, ka).first;
+                        ASSERT_EQ(g->second, ka) << sigma << " flips " << flips;
+                        if (type == LineType::Naive) {
+                            ASSERT_TRUE(majors[ka].insert(c[p.majorAxis()]).second)
+                                << "two voxels of one naive line share a major coordinate, "
+                                << sigma;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

@@ -162,7 +162,28 @@ public:
     /// @brief The line through voxel @a xyz. Valid for every int32 coordinate.
     LineKey key(const openvdb::math::Coord& xyz) const
     {
-        return LineKey{floorDiv(dot(mFormI, xyz), mOmegaAB), floorDiv(dot(mFormJ, xyz), mOmegaAC)};
+        if (!mCentred) {
+            return LineKey{floorDiv(dot(mFormI, xyz), mOmegaAB),
+                floorDiv(dot(mFormJ, xyz), mOmegaAC)};
+        }
+        return LineKey{centredIndex(2 * dot(mFormI, xyz) - mOffsetI, mOmegaAB),
+            centredIndex(2 * dot(mFormJ, xyz) - mOffsetJ, mOmegaAC)};
+    }
+
+    /// @brief Centre the partition on the point @a twiceCentre / 2 (e.g. min + max of a box), so
+    /// that mirroring about that point maps the lines of sigma onto the lines of the mirrored
+    /// direction: a mirror-symmetric scene then gets a mirror-symmetric solution.
+    /// @details A form F becomes T = 2 F(x) - F(twiceCentre), which negates under the point
+    /// reflection. Bounds must be a set the negation keeps: at T = 2w k when T is odd (then no
+    /// voxel falls on a bound), else at T = w + 2w k, and a voxel on a bound (T and w both even)
+    /// goes to the line on the side away from the centre, so that the rule is its own mirror
+    /// image. Every line is still a digital line of the same thickness, only translated, except
+    /// that in that last case the central line is one voxel thinner where it meets a bound.
+    void centreOn(const openvdb::math::Coord& twiceCentre)
+    {
+        mCentred = true;
+        mOffsetI = dot(mFormI, twiceCentre);
+        mOffsetJ = dot(mFormJ, twiceCentre);
     }
 
     /// @brief A coordinate along the line of @a xyz that strictly increases along +sigma.
@@ -223,6 +244,13 @@ private:
         return f[0] * xyz[0] + f[1] * xyz[1] + f[2] * xyz[2];
     }
 
+    // Line index of the centred, doubled form value T (see centreOn()).
+    static int64_t centredIndex(int64_t t, int64_t omega)
+    {
+        if (t & 1) return floorDiv(t, 2 * omega);
+        return t >= 0 ? floorDiv(t + omega, 2 * omega) : -floorDiv(omega - t, 2 * omega);
+    }
+
     static int64_t gcd(int64_t u, int64_t v)
     {
         while (v != 0) {
@@ -240,6 +268,8 @@ private:
     std::array<int, 3> mSign;
     int64_t mOmegaAB = 1;
     int64_t mOmegaAC = 1;
+    bool mCentred = false;
+    int64_t mOffsetI = 0, mOffsetJ = 0;   // centreOn(): F(twiceCentre)
     std::array<int64_t, 3> mFormI;    // i = floor(mFormI . xyz / mOmegaAB)
     std::array<int64_t, 3> mFormJ;    // j = floor(mFormJ . xyz / mOmegaAC)
     std::array<int64_t, 3> mFormPos;  // position = mFormPos . xyz

@@ -1,0 +1,260 @@
+#include "vdbrad/RadiositySolver.h"
+
+#include "vdbrad/Enclosure.h"
+#include "vdbrad/Errors.h"
+#include "vdbrad/LeafOrder.h"
+#include "vdbrad/LineSweep.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+
+namespace vdbrad {
+
+namespace {
+
+template<typename ValueT> struct Accumulator;
+template<> struct Accumulator<float> { using Type = double; };
+template<> struct Accumulator<openvdb::Vec3f> { using Type = openvdb::Vec3d; };
+
+inline float magnitude(float v) { return std::abs(v); }
+inline float magnitude(const openvdb::Vec3f& v) { return std::max({v[0], v[1], v[2]}); }
+inline float magnitudeOfDiff(float a, float b) { return std::abs(a - b); }
+inline float magnitudeOfDiff(const openvdb::Vec3f& a, const openvdb::Vec3f& b)
+{
+    const openvdb::Vec3f d = a - b;
+    return std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])});
+}
+template<typename ValueT> ValueT value(const Attribute& a, size_t i);
+template<> inline float value<float>(const Attribute& a, size_t i) { return a.grey(i); }
+template<> inline openvdb::Vec3f value<openvdb::Vec3f>(const Attribute& a, size_t i)
+{
+    return a.rgb(i);
+}
+inline float narrow(double v) { return float(v); }
+inline openvdb::Vec3f narrow(const openvdb::Vec3d& v) { return openvdb::Vec3f(v); }
+inline double widen(float v) { return double(v); }
+inline openvdb::Vec3d widen(const openvdb::Vec3f& v) { return openvdb::Vec3d(v); }
+
+} // namespace
+
+// What the solver needs that does not depend on the value type.
+struct RadiositySolver::Impl
+{
+    std::array<std::unique_ptr<LeafOrder>, 4> orders;   // by base sign pattern (y, z signs)
+    std::vector<int> pattern;                            // per direction: index into orders
+    std::vector<char> reversed;                          // per direction
+    std::vector<float> coefficient;                      // per direction: A / |s|
+    std::vector<float> invZ;                             // per voxel: 1 / Z(n)
+    Regions regions;                                     // per voxel: the air region it faces
+    bool hitsKnown = false;                              // invZ renormalised for closed voxels
+    std::unique_ptr<LineSweep> sweep;
+    std::vector<float> grey;
+    std::vector<openvdb::Vec3f> rgb;
+};
+
+template<typename ValueT>
+struct RadiositySolver::Engine
+{
+    using AccT = typename Accumulator<ValueT>::Type;
+
+    static double iterate(RadiositySolver& s, std::vector<ValueT>& B,
+        openvdb::util::NullInterrupter* interrupt)
+    {
+        const Scene& scene = s.mScene;
+        Impl& impl = *s.mImpl;
+        const size_t n = scene.size();
+        const size_t dirs = s.mDirections.size();
+        std::vector<std::vector<AccT>> gathered(static_cast<size_t>(kGroups));
+        // The first iteration also measures, per voxel, the weight of the directions that meet
+        // a voxel: closed-cavity voxels are renormalised over those (Enclosure.h).
+        const bool measureHits = !impl.hitsKnown;
+        std::vector<std::vector<double>> hits(measureHits ? size_t(kGroups) : 0);
+        std::atomic<size_t> done{0};
+        std::atomic<bool> cancelled{false};
+
+        tbb::parallel_for(tbb::blocked_range<int>(0, kGroups, 1),
+            [&](const tbb::blocked_range<int>& r) {
+                for (int g = r.begin(); g != r.end(); ++g) {
+                    std::vector<AccT>& G = gathered[size_t(g)];
+                    G.assign(n, openvdb::zeroVal<AccT>());
+                    std::vector<double>* H = measureHits ? &hits[size_t(g)] : nullptr;
+                    if (H) H->assign(n, 0.0);
+                    for (size_t k = size_t(g); k < dirs; k += kGroups) {
+                        if (cancelled.load(std::memory_order_relaxed)) return;
+                        const double c = impl.coefficient[k];
+                        impl.sweep->sweep(s.mDirections.direction(k), *impl.orders[size_t(
+                            impl.pattern[k])], impl.reversed[k] != 0,
+                            [&](uint32_t x, uint32_t y, float sigmaDotN) {
+                                if (y != LineSweep::kNone) {
+                                    const double w = std::abs(double(sigmaDotN)) * c;
+                                    G[x] += widen(B[y]) * w;
+                                    if (H) (*H)[x] += w;
+                                }
+                            });
+                        const size_t d = ++done;
+                        if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
+                            cancelled = true;
+                        }
+                    }
+                }
+            });
+        if (cancelled) throw Cancelled("radiosity solve");
+
+        if (measureHits) {
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
+                [&](const tbb::blocked_range<size_t>& r) {
+                    for (size_t i = r.begin(); i != r.end(); ++i) {
+                        if (impl.regions.region[i] == 0) continue;   // faces the open outside
+                        double h = hits[0][i];
+                        for (int g = 1; g < kGroups; ++g) h += hits[size_t(g)][i];
+                        if (h > 0.0) impl.invZ[i] = float(1.0 / h);
+                    }
+                });
+            impl.hitsKnown = true;
+        }
+
+        std::vector<float> change(n), size(n);
+        std::vector<ValueT> next(n);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                AccT sum = gathered[0][i];
+                for (int g = 1; g < kGroups; ++g) sum += gathered[size_t(g)][i];
+                const ValueT incoming = narrow(sum * double(impl.invZ[i]));
+                next[i] = value<ValueT>(scene.emission(), i)
+                    + value<ValueT>(scene.albedo(), i) * incoming;
+                change[i] = magnitudeOfDiff(next[i], B[i]);
+                size[i] = magnitude(next[i]);
+            }
+        });
+        float maxChange = 0.f, maxSize = 0.f;
+        for (size_t i = 0; i < n; ++i) {
+            maxChange = std::max(maxChange, change[i]);
+            maxSize = std::max(maxSize, size[i]);
+        }
+        B.swap(next);
+        return maxSize > 0.f ? double(maxChange) / double(maxSize) : 0.0;
+    }
+};
+
+RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& options)
+    : mScene(scene)
+    , mOptions(options)
+    , mImpl(new Impl)
+{
+    if (options.directions < 1) {
+        OPENVDB_THROW(openvdb::ValueError, "directions must be >= 1, got " << options.directions);
+    }
+    if (options.maxIterations < 1) {
+        OPENVDB_THROW(openvdb::ValueError, "iterations must be >= 1, got "
+            << options.maxIterations);
+    }
+    if (!(options.tolerance >= 0.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "tolerance must be >= 0, got " << options.tolerance);
+    }
+    if (!(options.occlusionDepth > 0.f)) {
+        OPENVDB_THROW(openvdb::ValueError, "occlusion depth must be > 0, got "
+            << options.occlusionDepth);
+    }
+    mDirections = DirectionSet::fromCount(options.directions);
+    const size_t dirs = mDirections.size(), n = scene.size();
+
+    Impl& impl = *mImpl;
+    impl.pattern.resize(dirs);
+    impl.reversed.resize(dirs);
+    impl.coefficient.resize(dirs);
+    for (size_t k = 0; k < dirs; ++k) {
+        bool rev = false;
+        const LeafOrder::Signs signs = LeafOrder::baseSigns(mDirections.direction(k), rev);
+        const int p = (signs[1] < 0 ? 2 : 0) + (signs[2] < 0 ? 1 : 0);
+        impl.pattern[k] = p;
+        impl.reversed[k] = rev ? 1 : 0;
+        if (!impl.orders[size_t(p)]) impl.orders[size_t(p)].reset(new LeafOrder(scene.voxels(), signs));
+        const openvdb::Coord& d = mDirections.direction(k);
+        impl.coefficient[k] = float(mDirections.factor(k) / openvdb::Vec3d(d.asVec3d()).length());
+    }
+
+    // Per-voxel normalisation of the direction factors (DirectionSet.h).
+    impl.invZ.resize(n);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            impl.invZ[i] = float(1.0 / mDirections.hemisphereSum(openvdb::Vec3d(scene.normal(i))));
+        }
+    });
+    impl.regions = findRegions(scene.voxels(), scene.normals(), options.lines);
+    impl.sweep.reset(new LineSweep(scene.voxels(), scene.normals(), options.lines,
+        options.occlusionDepth, &impl.regions.region));
+
+    if (scene.isRgb()) {
+        impl.rgb.resize(n);
+        for (size_t i = 0; i < n; ++i) impl.rgb[i] = scene.emission().rgb(i);
+    } else {
+        impl.grey.resize(n);
+        for (size_t i = 0; i < n; ++i) impl.grey[i] = scene.emission().grey(i);
+    }
+}
+
+RadiositySolver::~RadiositySolver() = default;
+
+double
+RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    const double residual = mScene.isRgb()
+        ? Engine<openvdb::Vec3f>::iterate(*this, mImpl->rgb, interrupt)
+        : Engine<float>::iterate(*this, mImpl->grey, interrupt);
+    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    mResiduals.push_back(residual);
+    return residual;
+}
+
+bool
+RadiositySolver::converged() const
+{
+    return !mResiduals.empty() && mResiduals.back() <= mOptions.tolerance;
+}
+
+void
+RadiositySolver::solve(openvdb::util::NullInterrupter* interrupt)
+{
+    while (!converged() && iterationCount() < mOptions.maxIterations) iterate(interrupt);
+}
+
+const std::vector<float>& RadiositySolver::grey() const { return mImpl->grey; }
+const std::vector<openvdb::Vec3f>& RadiositySolver::rgb() const { return mImpl->rgb; }
+
+SolveStats
+RadiositySolver::stats() const
+{
+    SolveStats s;
+    s.directions = int(mDirections.size());
+    s.iterations = iterationCount();
+    s.residual = mResiduals.empty() ? 0.0 : mResiduals.back();
+    s.seconds = mSeconds;
+    s.lines = mOptions.lines == LineType::Naive ? "naive" : "standard";
+    return s;
+}
+
+openvdb::GridBase::Ptr
+RadiositySolver::grid() const
+{
+    return mScene.isRgb() ? makeRadiosityGrid(mScene, mImpl->rgb, stats())
+                          : makeRadiosityGrid(mScene, mImpl->grey, stats());
+}
+
+openvdb::GridBase::Ptr
+solveRadiosity(const Scene& scene, const RadiosityOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    RadiositySolver solver(scene, options);
+    if (interrupt) interrupt->start("solving radiosity");
+    solver.solve(interrupt);
+    if (interrupt) interrupt->end();
+    return solver.grid();
+}
+
+} // namespace vdbrad
