@@ -37,6 +37,7 @@
 #include <openvdb/math/Coord.h>
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -166,8 +167,8 @@ public:
             return LineKey{floorDiv(dot(mFormI, xyz), mOmegaAB),
                 floorDiv(dot(mFormJ, xyz), mOmegaAC)};
         }
-        return LineKey{centredIndex(2 * dot(mFormI, xyz) - mOffsetI, mOmegaAB),
-            centredIndex(2 * dot(mFormJ, xyz) - mOffsetJ, mOmegaAC)};
+        return LineKey{centredIndex(2 * dot(mFormI, xyz) - mOffsetI, mOmegaAB, mInvAB),
+            centredIndex(2 * dot(mFormJ, xyz) - mOffsetJ, mOmegaAC, mInvAC)};
     }
 
     /// @brief Centre the partition on the point @a twiceCentre / 2 (e.g. min + max of a box), so
@@ -184,6 +185,8 @@ public:
         mCentred = true;
         mOffsetI = dot(mFormI, twiceCentre);
         mOffsetJ = dot(mFormJ, twiceCentre);
+        mInvAB = 1.0 / double(2 * mOmegaAB);
+        mInvAC = 1.0 / double(2 * mOmegaAC);
     }
 
     /// @brief A coordinate along the line of @a xyz that strictly increases along +sigma.
@@ -245,10 +248,20 @@ private:
     }
 
     // Line index of the centred, doubled form value T (see centreOn()).
-    static int64_t centredIndex(int64_t t, int64_t omega)
+    // Runs once per voxel per direction in the sweeps: the division is a multiplication by the
+    // reciprocal, exact after one correction step since |t| < 2^53 (see kMaxComponent).
+    static int64_t centredIndex(int64_t t, int64_t omega, double inverse)
     {
-        if (t & 1) return floorDiv(t, 2 * omega);
-        return t >= 0 ? floorDiv(t + omega, 2 * omega) : -floorDiv(omega - t, 2 * omega);
+        // Odd t: bounds at 2w Z. Even t: bounds at w + 2w Z, ties away from the centre
+        // (-floor((w - t) / 2w) = floor((t + w - 1) / 2w) for t < 0).
+        const int64_t n = (t & 1) ? t : t + omega - (t < 0 ? 1 : 0);
+        const int64_t d = 2 * omega;
+        // Truncation is off by at most one, like rounding: the corrections below fix both.
+        int64_t q = int64_t(double(n) * inverse);
+        const int64_t r = n - q * d;
+        q -= int64_t(r < 0);
+        q += int64_t(r >= d);
+        return q;
     }
 
     static int64_t gcd(int64_t u, int64_t v)
@@ -270,6 +283,7 @@ private:
     int64_t mOmegaAC = 1;
     bool mCentred = false;
     int64_t mOffsetI = 0, mOffsetJ = 0;   // centreOn(): F(twiceCentre)
+    double mInvAB = 0.0, mInvAC = 0.0;    // centreOn(): 1 / (2 w)
     std::array<int64_t, 3> mFormI;    // i = floor(mFormI . xyz / mOmegaAB)
     std::array<int64_t, 3> mFormJ;    // j = floor(mFormJ . xyz / mOmegaAC)
     std::array<int64_t, 3> mFormPos;  // position = mFormPos . xyz

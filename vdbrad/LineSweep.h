@@ -57,20 +57,34 @@ public:
         mMax = box.max();
     }
 
+    /// Per-thread scratch memory, reused from one direction to the next.
+    struct Workspace
+    {
+        std::vector<uint32_t> slots;     // line slot of the k-th visited voxel (pass 1 -> pass 2)
+        std::vector<uint64_t> fronts;    // per line: last voxel (low 32 bits), seen (high 32)
+        std::unordered_map<LineKey, uint32_t, LineKeyHash> ids;   // sparse scenes only
+    };
+
     /// @brief Report, for every voxel x that faces sigma or -sigma, the voxel it sees:
     /// visit(x, y, sigmaDotN) with sigmaDotN = sigma . n_x (> 0: x looks along +sigma, < 0:
-    /// along -sigma) and y the seen voxel or kNone. Sequential: run one direction per thread.
+    /// along -sigma) and y the seen voxel or kNone. Sequential: run one direction per thread,
+    /// each thread with its own @a work.
     /// @param order     the LeafOrder of LeafOrder::baseSigns(sigma, reversed)
     /// @param reversed  as returned by LeafOrder::baseSigns for sigma
     template<typename VisitT>
     void sweep(const openvdb::Coord& sigma, const LeafOrder& order, bool reversed,
-        VisitT&& visit) const
+        Workspace& work, VisitT&& visit) const
     {
         LinePartition partition(sigma, mLines);
         // Centred on the scene so that a symmetric scene gets symmetric lines.
         partition.centreOn(mMin + mMax);
-        // Dense frontier over the lines crossing the bounding box when that is not much larger
-        // than the scene; hashed otherwise (a few small objects far apart).
+        const std::vector<uint32_t>& seq = order.voxels();
+        const size_t n = seq.size();
+        work.slots.resize(n);
+
+        // Line slots, in visiting order along +sigma: dense over the lines crossing the bounding
+        // box when those are not much more numerous than the voxels, numbered on first sight
+        // otherwise (a few small objects far apart).
         int64_t i0 = std::numeric_limits<int64_t>::max(), i1 = std::numeric_limits<int64_t>::min();
         int64_t j0 = i0, j1 = i1;
         for (int c = 0; c < 8; ++c) {
@@ -80,58 +94,54 @@ public:
             i0 = std::min(i0, k.i); i1 = std::max(i1, k.i);
             j0 = std::min(j0, k.j); j1 = std::max(j1, k.j);
         }
-        const double lines = double(i1 - i0 + 1) * double(j1 - j0 + 1);
-        if (lines <= 4.0 * double(mVoxels.size()) + 65536.0) {
+        const double dense = double(i1 - i0 + 1) * double(j1 - j0 + 1);
+        size_t lines = 0;
+        auto along = [&](size_t k) { return seq[reversed ? n - 1 - k : k]; };
+        if (dense <= 4.0 * double(n) + 65536.0) {
             const int64_t nj = j1 - j0 + 1;
-            std::vector<Front> table(static_cast<size_t>(lines));
-            auto slot = [&](const LineKey& k) -> Front& {
-                return table[size_t((k.i - i0) * nj + (k.j - j0))];
-            };
-            pass(partition, order, reversed, +1.f, slot, visit);
-            std::fill(table.begin(), table.end(), Front());
-            pass(partition, order, reversed, -1.f, slot, visit);
+            lines = size_t(dense);
+            for (size_t k = 0; k < n; ++k) {
+                const LineKey key = partition.key(mVoxels.coord(along(k)));
+                work.slots[k] = uint32_t((key.i - i0) * nj + (key.j - j0));
+            }
         } else {
-            std::unordered_map<LineKey, Front, LineKeyHash> table;
-            table.reserve(mVoxels.size());
-            auto slot = [&](const LineKey& k) -> Front& { return table[k]; };
-            pass(partition, order, reversed, +1.f, slot, visit);
-            table.clear();
-            pass(partition, order, reversed, -1.f, slot, visit);
+            work.ids.clear();
+            for (size_t k = 0; k < n; ++k) {
+                const LineKey key = partition.key(mVoxels.coord(along(k)));
+                work.slots[k] = work.ids.emplace(key, uint32_t(work.ids.size())).first->second;
+            }
+            lines = work.ids.size();
+        }
+        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
+        for (float travel : {1.f, -1.f}) {
+            work.fronts.assign(lines, ~uint64_t(0));
+            const openvdb::Vec3f t = s * travel;
+            for (size_t m = 0; m < n; ++m) {
+                const size_t k = travel > 0.f ? m : n - 1 - m;
+                step(along(k), work.fronts[work.slots[k]], t, travel, visit);
+            }
         }
     }
 
 private:
-    // Per line: the last voxel met, and what a receiver right after it sees (if not behind it).
-    struct Front { uint32_t last = kNone; uint32_t seen = kNone; };
-
-    /// One streaming pass with light travelling along travel * sigma.
-    template<typename SlotT, typename VisitT>
-    void pass(const LinePartition& partition, const LeafOrder& order, bool reversed, float travel,
-        SlotT& slot, VisitT& visit) const
+    /// Visit voxel x with the frontier @a front of its line, light travelling along @a t.
+    template<typename VisitT>
+    void step(uint32_t x, uint64_t& front, const openvdb::Vec3f& t, float travel,
+        VisitT& visit) const
     {
-        const openvdb::Coord& sigma = partition.direction();
-        const openvdb::Vec3f t = openvdb::Vec3f(float(sigma.x()), float(sigma.y()),
-            float(sigma.z())) * travel;
-        // The LeafOrder runs along +sigma, or along -sigma when `reversed`.
-        const bool backwards = (travel > 0.f) == reversed;
-        const std::vector<uint32_t>& seq = order.voxels();
-        const size_t n = seq.size();
-        for (size_t k = 0; k < n; ++k) {
-            const uint32_t x = seq[backwards ? n - 1 - k : k];
-            const openvdb::Coord& cx = mVoxels.coord(x);
-            Front& f = slot(partition.key(cx));
-            const float dx = t.dot(mNormals[x]);
-            uint32_t seen = f.seen;
-            if (seen != kNone && f.last != seen) {
-                // The previous voxel let the light pass: x is hidden if it lies behind it.
-                const openvdb::Vec3f& np = mNormals[f.last];
-                if ((cx - mVoxels.coord(f.last)).asVec3s().dot(np) <= -mDepth) seen = kNone;
+        const uint32_t last = uint32_t(front), seenBefore = uint32_t(front >> 32);
+        const float dx = t.dot(mNormals[x]);
+        uint32_t seen = seenBefore;
+        if (seen != kNone && last != seen) {
+            // The previous voxel let the light pass: x is hidden if it lies behind it.
+            const openvdb::Vec3f& np = mNormals[last];
+            if ((mVoxels.coord(x) - mVoxels.coord(last)).asVec3s().dot(np) <= -mDepth) {
+                seen = kNone;
             }
-            if (seen != kNone && mRegions && (*mRegions)[x] != (*mRegions)[seen]) seen = kNone;
-            if (dx < 0.f) visit(x, seen, dx * travel);   // = sigma . n_x
-            f.last = x;
-            f.seen = dx > 0.f ? x : seen;
         }
+        if (seen != kNone && mRegions && (*mRegions)[x] != (*mRegions)[seen]) seen = kNone;
+        if (dx < 0.f) visit(x, seen, dx * travel);   // dx * travel = sigma . n_x
+        front = uint64_t(x) | (uint64_t(dx > 0.f ? x : seen) << 32);
     }
 
     const VoxelIndex& mVoxels;

@@ -11,8 +11,9 @@
 //
 // Jacobi iteration: every iteration sweeps every direction (both senses) with the previous
 // iterate and replaces B at the end; the relative residual max|B' - B| / max|B'| is reported per
-// iteration. Gathers accumulate in double (a voxel sums up to thousands of terms of mixed size;
-// float would lose ~1e-4 relative at 1000 directions), storage is float.
+// iteration. Precision: storage is float; each accumulator group sums about
+// directions / kGroups terms per voxel in float (~1e-6 relative), and the groups, the
+// per-voxel normalisation and the residual are computed in double.
 //
 // Threads: directions are dealt to a fixed number of groups (kGroups, independent of the thread
 // count); each group sweeps its directions one after the other into its own accumulator, and the
