@@ -24,6 +24,10 @@
 //     leaving a room through the corner voxel it starts from reaches nothing outside.
 // Each receiver is reported once per direction with the voxel it sees, or none (the open sky, or
 // a back).
+//
+// Layout: a LineSweep holds the voxels of one LeafOrder sign pattern laid out in that visiting
+// order (coordinates, normals, regions), so that a sweep reads everything sequentially; voxels
+// are named by their position in that order.
 #pragma once
 
 #include "vdbrad/LeafOrder.h"
@@ -44,18 +48,31 @@ class LineSweep
 public:
     static constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
-    /// @param voxels   the surface voxels
-    /// @param normals  index-space unit normals, one per voxel
+    /// @brief The voxels of @a index in the visiting order @a order.
+    /// @param normals  index-space unit normals, one per voxel of @a index
     /// @param depth    occlusion depth in voxels (see the file comment), > 0
-    /// @param regions  per voxel, the air region it faces (Enclosure.h); may be null (one region)
-    LineSweep(const VoxelIndex& voxels, const std::vector<openvdb::Vec3f>& normals,
-        LineType lines, float depth = 1.f, const std::vector<uint32_t>* regions = nullptr)
-        : mVoxels(voxels), mNormals(normals), mRegions(regions), mLines(lines), mDepth(depth)
+    /// @param regions  per voxel of @a index, the air region it faces (Enclosure.h); null: one
+    LineSweep(const VoxelIndex& index, const LeafOrder& order,
+        const std::vector<openvdb::Vec3f>& normals, LineType lines, float depth = 1.f,
+        const std::vector<uint32_t>* regions = nullptr)
+        : mSigns(order.signs()), mLines(lines), mDepth(depth)
     {
-        const openvdb::CoordBBox box = voxels.bbox();
+        const std::vector<uint32_t>& seq = order.voxels();
+        mCoords.resize(seq.size());
+        mNormals.resize(seq.size());
+        if (regions) mRegions.resize(seq.size());
+        for (size_t k = 0; k < seq.size(); ++k) {
+            mCoords[k] = index.coord(seq[k]);
+            mNormals[k] = normals[seq[k]];
+            if (regions) mRegions[k] = (*regions)[seq[k]];
+        }
+        const openvdb::CoordBBox box = index.bbox();
         mMin = box.min();
         mMax = box.max();
     }
+
+    size_t size() const { return mCoords.size(); }
+    const LeafOrder::Signs& signs() const { return mSigns; }
 
     /// Per-thread scratch memory, reused from one direction to the next.
     struct Workspace
@@ -66,20 +83,18 @@ public:
     };
 
     /// @brief Report, for every voxel x that faces sigma or -sigma, the voxel it sees:
-    /// visit(x, y, sigmaDotN) with sigmaDotN = sigma . n_x (> 0: x looks along +sigma, < 0:
-    /// along -sigma) and y the seen voxel or kNone. Sequential: run one direction per thread,
-    /// each thread with its own @a work.
-    /// @param order     the LeafOrder of LeafOrder::baseSigns(sigma, reversed)
-    /// @param reversed  as returned by LeafOrder::baseSigns for sigma
+    /// visit(x, y, sigmaDotN) with x, y positions in this sweep's order, sigmaDotN = sigma . n_x
+    /// (> 0: x looks along +sigma, < 0: along -sigma) and y = kNone if x sees nothing.
+    /// Sequential: run one direction per thread, each thread with its own @a work.
+    /// @param reversed  as returned by LeafOrder::baseSigns(sigma, reversed), whose signs must
+    ///                  be this sweep's
     template<typename VisitT>
-    void sweep(const openvdb::Coord& sigma, const LeafOrder& order, bool reversed,
-        Workspace& work, VisitT&& visit) const
+    void sweep(const openvdb::Coord& sigma, bool reversed, Workspace& work, VisitT&& visit) const
     {
         LinePartition partition(sigma, mLines);
         // Centred on the scene so that a symmetric scene gets symmetric lines.
         partition.centreOn(mMin + mMax);
-        const std::vector<uint32_t>& seq = order.voxels();
-        const size_t n = seq.size();
+        const size_t n = mCoords.size();
         work.slots.resize(n);
 
         // Line slots, in visiting order along +sigma: dense over the lines crossing the bounding
@@ -96,18 +111,19 @@ public:
         }
         const double dense = double(i1 - i0 + 1) * double(j1 - j0 + 1);
         size_t lines = 0;
-        auto along = [&](size_t k) { return seq[reversed ? n - 1 - k : k]; };
+        // Position of the k-th voxel along +sigma.
+        auto along = [&](size_t k) { return uint32_t(reversed ? n - 1 - k : k); };
         if (dense <= 4.0 * double(n) + 65536.0) {
             const int64_t nj = j1 - j0 + 1;
             lines = size_t(dense);
             for (size_t k = 0; k < n; ++k) {
-                const LineKey key = partition.key(mVoxels.coord(along(k)));
+                const LineKey key = partition.key(mCoords[along(k)]);
                 work.slots[k] = uint32_t((key.i - i0) * nj + (key.j - j0));
             }
         } else {
             work.ids.clear();
             for (size_t k = 0; k < n; ++k) {
-                const LineKey key = partition.key(mVoxels.coord(along(k)));
+                const LineKey key = partition.key(mCoords[along(k)]);
                 work.slots[k] = work.ids.emplace(key, uint32_t(work.ids.size())).first->second;
             }
             lines = work.ids.size();
@@ -135,18 +151,19 @@ private:
         if (seen != kNone && last != seen) {
             // The previous voxel let the light pass: x is hidden if it lies behind it.
             const openvdb::Vec3f& np = mNormals[last];
-            if ((mVoxels.coord(x) - mVoxels.coord(last)).asVec3s().dot(np) <= -mDepth) {
+            if ((mCoords[x] - mCoords[last]).asVec3s().dot(np) <= -mDepth) {
                 seen = kNone;
             }
         }
-        if (seen != kNone && mRegions && (*mRegions)[x] != (*mRegions)[seen]) seen = kNone;
+        if (seen != kNone && !mRegions.empty() && mRegions[x] != mRegions[seen]) seen = kNone;
         if (dx < 0.f) visit(x, seen, dx * travel);   // dx * travel = sigma . n_x
         front = uint64_t(x) | (uint64_t(dx > 0.f ? x : seen) << 32);
     }
 
-    const VoxelIndex& mVoxels;
-    const std::vector<openvdb::Vec3f>& mNormals;
-    const std::vector<uint32_t>* mRegions;
+    LeafOrder::Signs mSigns;
+    std::vector<openvdb::Coord> mCoords;
+    std::vector<openvdb::Vec3f> mNormals;
+    std::vector<uint32_t> mRegions;
     LineType mLines;
     float mDepth;
     openvdb::Coord mMin, mMax;

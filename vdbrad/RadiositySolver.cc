@@ -52,16 +52,31 @@ inline openvdb::Vec3d widen(const openvdb::Vec3f& v) { return openvdb::Vec3d(v);
 // What the solver needs that does not depend on the value type.
 struct RadiositySolver::Impl
 {
-    std::array<std::unique_ptr<LeafOrder>, 4> orders;   // by base sign pattern (y, z signs)
-    std::vector<int> pattern;                            // per direction: index into orders
+    // The voxels laid out in the visiting order of one base sign pattern (LeafOrder), with the
+    // directions that pattern serves. Accumulator group g works in pattern g % 4's order.
+    struct Pattern
+    {
+        std::vector<uint32_t> order;        // position -> voxel
+        std::vector<uint32_t> position;     // voxel -> position
+        std::unique_ptr<LineSweep> sweep;
+        std::vector<size_t> directions;
+    };
+    std::array<Pattern, 4> patterns;
     std::vector<char> reversed;                          // per direction
     std::vector<float> coefficient;                      // per direction: A / |s|
     std::vector<float> invZ;                             // per voxel: 1 / Z(n)
     Regions regions;                                     // per voxel: the air region it faces
     bool hitsKnown = false;                              // invZ renormalised for closed voxels
-    std::unique_ptr<LineSweep> sweep;
     std::vector<float> grey;
     std::vector<openvdb::Vec3f> rgb;
+
+    static int patternOf(int group) { return group % 4; }
+    // The directions of group g: every other one of its pattern's.
+    template<typename F> void forDirections(int group, F&& f) const
+    {
+        const std::vector<size_t>& dirs = patterns[size_t(patternOf(group))].directions;
+        for (size_t j = size_t(group / 4); j < dirs.size(); j += kGroups / 4) f(dirs[j]);
+    }
 };
 
 template<typename ValueT>
@@ -73,35 +88,50 @@ struct RadiositySolver::Engine
     static double iterate(RadiositySolver& s, std::vector<ValueT>& B,
         openvdb::util::NullInterrupter* interrupt)
     {
+        static_assert(kGroups % 4 == 0, "groups are dealt to the 4 sign patterns");
         const Scene& scene = s.mScene;
         Impl& impl = *s.mImpl;
         const size_t n = scene.size();
         const size_t dirs = s.mDirections.size();
+        // B in each pattern's order, so that the sweeps read it sequentially.
+        std::array<std::vector<ValueT>, 4> ordered;
+        for (size_t p = 0; p < 4; ++p) {
+            const Impl::Pattern& pattern = impl.patterns[p];
+            if (pattern.directions.empty()) continue;
+            ordered[p].resize(n);
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
+                [&](const tbb::blocked_range<size_t>& r) {
+                    for (size_t k = r.begin(); k != r.end(); ++k) ordered[p][k] = B[pattern.order[k]];
+                });
+        }
         std::vector<std::vector<AccT>> gathered(static_cast<size_t>(kGroups));
         // The first iteration also measures, per voxel, the weight of the directions that meet
         // a voxel: closed-cavity voxels are renormalised over those (Enclosure.h).
         const bool measureHits = !impl.hitsKnown;
-        std::vector<std::vector<double>> hits(measureHits ? size_t(kGroups) : 0);
+        std::vector<std::vector<float>> hits(static_cast<size_t>(kGroups));
         std::atomic<size_t> done{0};
         std::atomic<bool> cancelled{false};
 
         tbb::parallel_for(tbb::blocked_range<int>(0, kGroups, 1),
             [&](const tbb::blocked_range<int>& r) {
                 for (int g = r.begin(); g != r.end(); ++g) {
+                    const size_t p = size_t(Impl::patternOf(g));
+                    if (impl.patterns[p].directions.empty()) continue;
+                    const LineSweep& sweep = *impl.patterns[p].sweep;
+                    const std::vector<ValueT>& Bp = ordered[p];
                     std::vector<AccT>& G = gathered[size_t(g)];
                     G.assign(n, openvdb::zeroVal<AccT>());
-                    std::vector<double>* H = measureHits ? &hits[size_t(g)] : nullptr;
-                    if (H) H->assign(n, 0.0);
+                    std::vector<float>* H = measureHits ? &hits[size_t(g)] : nullptr;
+                    if (H) H->assign(n, 0.f);
                     LineSweep::Workspace work;
-                    for (size_t k = size_t(g); k < dirs; k += kGroups) {
+                    impl.forDirections(g, [&](size_t k) {
                         if (cancelled.load(std::memory_order_relaxed)) return;
                         const float c = impl.coefficient[k];
-                        impl.sweep->sweep(s.mDirections.direction(k), *impl.orders[size_t(
-                            impl.pattern[k])], impl.reversed[k] != 0, work,
+                        sweep.sweep(s.mDirections.direction(k), impl.reversed[k] != 0, work,
                             [&](uint32_t x, uint32_t y, float sigmaDotN) {
                                 if (y != LineSweep::kNone) {
                                     const float w = std::abs(sigmaDotN) * c;
-                                    G[x] += B[y] * w;
+                                    G[x] += Bp[y] * w;
                                     if (H) (*H)[x] += w;
                                 }
                             });
@@ -109,18 +139,26 @@ struct RadiositySolver::Engine
                         if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
                             cancelled = true;
                         }
-                    }
+                    });
                 }
             });
         if (cancelled) throw Cancelled("radiosity solve");
 
+        // Group g's arrays are in pattern g % 4's order: read voxel i at its position there.
+        auto sumGroups = [&](auto& arrays, size_t i, auto zero) {
+            auto sum = zero;
+            for (int g = 0; g < kGroups; ++g) {
+                const auto& a = arrays[size_t(g)];
+                if (!a.empty()) sum += widen(a[impl.patterns[size_t(Impl::patternOf(g))].position[i]]);
+            }
+            return sum;
+        };
         if (measureHits) {
             tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
                 [&](const tbb::blocked_range<size_t>& r) {
                     for (size_t i = r.begin(); i != r.end(); ++i) {
                         if (impl.regions.region[i] == 0) continue;   // faces the open outside
-                        double h = hits[0][i];
-                        for (int g = 1; g < kGroups; ++g) h += hits[size_t(g)][i];
+                        const double h = sumGroups(hits, i, 0.0);
                         if (h > 0.0) impl.invZ[i] = float(1.0 / h);
                     }
                 });
@@ -131,8 +169,7 @@ struct RadiositySolver::Engine
         std::vector<ValueT> next(n);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
             for (size_t i = r.begin(); i != r.end(); ++i) {
-                WideT sum = widen(gathered[0][i]);
-                for (int g = 1; g < kGroups; ++g) sum += widen(gathered[size_t(g)][i]);
+                const WideT sum = sumGroups(gathered, i, openvdb::zeroVal<WideT>());
                 const ValueT incoming = narrow(sum * double(impl.invZ[i]));
                 next[i] = value<ValueT>(scene.emission(), i)
                     + value<ValueT>(scene.albedo(), i) * incoming;
@@ -173,20 +210,19 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     const size_t dirs = mDirections.size(), n = scene.size();
 
     Impl& impl = *mImpl;
-    impl.pattern.resize(dirs);
     impl.reversed.resize(dirs);
     impl.coefficient.resize(dirs);
+    std::array<LeafOrder::Signs, 4> signsOf;
     for (size_t k = 0; k < dirs; ++k) {
         bool rev = false;
         const LeafOrder::Signs signs = LeafOrder::baseSigns(mDirections.direction(k), rev);
-        const int p = (signs[1] < 0 ? 2 : 0) + (signs[2] < 0 ? 1 : 0);
-        impl.pattern[k] = p;
+        const size_t p = size_t((signs[1] < 0 ? 2 : 0) + (signs[2] < 0 ? 1 : 0));
+        signsOf[p] = signs;
+        impl.patterns[p].directions.push_back(k);
         impl.reversed[k] = rev ? 1 : 0;
-        if (!impl.orders[size_t(p)]) impl.orders[size_t(p)].reset(new LeafOrder(scene.voxels(), signs));
         const openvdb::Coord& d = mDirections.direction(k);
         impl.coefficient[k] = float(mDirections.factor(k) / openvdb::Vec3d(d.asVec3d()).length());
     }
-
     // Per-voxel normalisation of the direction factors (DirectionSet.h).
     impl.invZ.resize(n);
     // Z costs one pass over the directions per voxel; walls of explicit scenes repeat a few
@@ -211,8 +247,16 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         }
     });
     impl.regions = findRegions(scene.voxels(), scene.normals(), options.lines);
-    impl.sweep.reset(new LineSweep(scene.voxels(), scene.normals(), options.lines,
-        options.occlusionDepth, impl.regions.cavities > 0 ? &impl.regions.region : nullptr));
+    for (size_t p = 0; p < 4; ++p) {
+        Impl::Pattern& pattern = impl.patterns[p];
+        if (pattern.directions.empty()) continue;
+        const LeafOrder order(scene.voxels(), signsOf[p]);
+        pattern.order = order.voxels();
+        pattern.position.resize(n);
+        for (size_t k = 0; k < n; ++k) pattern.position[pattern.order[k]] = uint32_t(k);
+        pattern.sweep.reset(new LineSweep(scene.voxels(), order, scene.normals(), options.lines,
+            options.occlusionDepth, impl.regions.cavities > 0 ? &impl.regions.region : nullptr));
+    }
 
     if (scene.isRgb()) {
         impl.rgb.resize(n);
