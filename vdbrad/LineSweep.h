@@ -74,22 +74,38 @@ public:
     size_t size() const { return mCoords.size(); }
     const LeafOrder::Signs& signs() const { return mSigns; }
 
+    /// What a line carries to the next voxel: the last voxel met (its position, top bit set if
+    /// it was a sender), the region of the voxel a receiver sees (kNone: it sees nothing) and a
+    /// payload of that voxel, copied when it was met (its radiosity, for the solver), so that
+    /// receivers never reach back to a voxel visited long ago.
+    template<typename PayloadT>
+    struct Front
+    {
+        uint32_t last = kNone;
+        uint32_t region = kNone;
+        PayloadT payload{};
+    };
+
     /// Per-thread scratch memory, reused from one direction to the next.
+    template<typename PayloadT>
     struct Workspace
     {
         std::vector<uint32_t> slots;     // line slot of the k-th visited voxel (pass 1 -> pass 2)
-        std::vector<uint64_t> fronts;    // per line: last voxel (low 32 bits), seen (high 32)
+        std::vector<Front<PayloadT>> fronts;
         std::unordered_map<LineKey, uint32_t, LineKeyHash> ids;   // sparse scenes only
     };
 
-    /// @brief Report, for every voxel x that faces sigma or -sigma, the voxel it sees:
-    /// visit(x, y, sigmaDotN) with x, y positions in this sweep's order, sigmaDotN = sigma . n_x
-    /// (> 0: x looks along +sigma, < 0: along -sigma) and y = kNone if x sees nothing.
-    /// Sequential: run one direction per thread, each thread with its own @a work.
+    /// @brief Report, for every voxel x that faces sigma or -sigma, what it sees:
+    /// visit(x, seen, sigmaDotN) with x a position in this sweep's order, seen a pointer to
+    /// load(y) for the voxel y it sees (null if it sees nothing) and sigmaDotN = sigma . n_x
+    /// (> 0: x looks along +sigma, < 0: along -sigma). load(k) is called once per sender and
+    /// pass, in visiting order. Sequential: run one direction per thread, each thread with its
+    /// own @a work.
     /// @param reversed  as returned by LeafOrder::baseSigns(sigma, reversed), whose signs must
     ///                  be this sweep's
-    template<typename VisitT>
-    void sweep(const openvdb::Coord& sigma, bool reversed, Workspace& work, VisitT&& visit) const
+    template<typename PayloadT, typename LoadT, typename VisitT>
+    void sweep(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work,
+        LoadT&& load, VisitT&& visit) const
     {
         LinePartition partition(sigma, mLines);
         // Centred on the scene so that a symmetric scene gets symmetric lines.
@@ -130,34 +146,43 @@ public:
         }
         const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
         for (float travel : {1.f, -1.f}) {
-            work.fronts.assign(lines, ~uint64_t(0));
+            work.fronts.assign(lines, Front<PayloadT>());
             const openvdb::Vec3f t = s * travel;
             for (size_t m = 0; m < n; ++m) {
                 const size_t k = travel > 0.f ? m : n - 1 - m;
-                step(along(k), work.fronts[work.slots[k]], t, travel, visit);
+                step(along(k), work.fronts[work.slots[k]], t, travel, load, visit);
             }
         }
     }
 
 private:
+    static constexpr uint32_t kSender = 0x80000000u;   // positions are < 2^31 (VoxelIndex)
+
     /// Visit voxel x with the frontier @a front of its line, light travelling along @a t.
-    template<typename VisitT>
-    void step(uint32_t x, uint64_t& front, const openvdb::Vec3f& t, float travel,
-        VisitT& visit) const
+    template<typename PayloadT, typename LoadT, typename VisitT>
+    void step(uint32_t x, Front<PayloadT>& front, const openvdb::Vec3f& t, float travel,
+        LoadT& load, VisitT& visit) const
     {
-        const uint32_t last = uint32_t(front), seenBefore = uint32_t(front >> 32);
         const float dx = t.dot(mNormals[x]);
-        uint32_t seen = seenBefore;
-        if (seen != kNone && last != seen) {
+        bool sees = front.region != kNone;
+        if (sees && !(front.last & kSender)) {
             // The previous voxel let the light pass: x is hidden if it lies behind it.
-            const openvdb::Vec3f& np = mNormals[last];
-            if ((mCoords[x] - mCoords[last]).asVec3s().dot(np) <= -mDepth) {
-                seen = kNone;
+            const uint32_t last = front.last;
+            if ((mCoords[x] - mCoords[last]).asVec3s().dot(mNormals[last]) <= -mDepth) {
+                sees = false;
             }
         }
-        if (seen != kNone && !mRegions.empty() && mRegions[x] != mRegions[seen]) seen = kNone;
-        if (dx < 0.f) visit(x, seen, dx * travel);   // dx * travel = sigma . n_x
-        front = uint64_t(x) | (uint64_t(dx > 0.f ? x : seen) << 32);
+        const uint32_t region = mRegions.empty() ? 0u : mRegions[x];
+        if (sees && front.region != region) sees = false;
+        if (dx < 0.f) visit(x, sees ? &front.payload : nullptr, dx * travel);   // = sigma . n_x
+        if (dx > 0.f) {
+            front.last = x | kSender;
+            front.region = region;
+            front.payload = load(x);
+        } else {
+            front.last = x;
+            if (!sees) front.region = kNone;
+        }
     }
 
     LeafOrder::Signs mSigns;

@@ -123,15 +123,16 @@ struct RadiositySolver::Engine
                     G.assign(n, openvdb::zeroVal<AccT>());
                     std::vector<float>* H = measureHits ? &hits[size_t(g)] : nullptr;
                     if (H) H->assign(n, 0.f);
-                    LineSweep::Workspace work;
+                    LineSweep::Workspace<ValueT> work;
                     impl.forDirections(g, [&](size_t k) {
                         if (cancelled.load(std::memory_order_relaxed)) return;
                         const float c = impl.coefficient[k];
                         sweep.sweep(s.mDirections.direction(k), impl.reversed[k] != 0, work,
-                            [&](uint32_t x, uint32_t y, float sigmaDotN) {
-                                if (y != LineSweep::kNone) {
+                            [&](uint32_t y) { return Bp[y]; },
+                            [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
+                                if (seen) {
                                     const float w = std::abs(sigmaDotN) * c;
-                                    G[x] += Bp[y] * w;
+                                    G[x] += *seen * w;
                                     if (H) (*H)[x] += w;
                                 }
                             });
