@@ -345,8 +345,30 @@ runInfo(const Arguments& a)
     } else {
         std::cout << "  cloud:     none (no float grid named 'density')\n";
     }
+    // A solved file: the result and how it was obtained.
+    const openvdb::GridBase::ConstPtr result = findGrid(file.grids, names::kRadiosity);
+    if (result) {
+        float lo = std::numeric_limits<float>::max(), hi = -lo;
+        auto range = [&](const openvdb::Vec3f& c) {
+            lo = std::min({lo, c[0], c[1], c[2]});
+            hi = std::max({hi, c[0], c[1], c[2]});
+        };
+        if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(result)) {
+            for (auto it = f->cbeginValueOn(); it; ++it) range(openvdb::Vec3f(*it));
+        } else if (auto v = openvdb::GridBase::constGrid<openvdb::Vec3SGrid>(result)) {
+            for (auto it = v->cbeginValueOn(); it; ++it) range(*it);
+        }
+        std::cout << "  radiosity: " << result->valueType() << ", values in [" << lo << ", " << hi
+                  << "]";
+        for (const char* key : {meta::kDirections, meta::kIterations, meta::kResidual,
+                 meta::kLines, meta::kSeconds, meta::kVersion}) {
+            if (auto m = (*result)[key]) std::cout << ", " << key + 7 << " " << m->str();
+        }
+        std::cout << "\n";
+    }
     std::vector<std::string> passed;
     for (const auto& g : file.grids) {
+        if (g == result) continue;
         if (g != roles.surface && g != roles.albedo && g != roles.emission && g != roles.density) {
             passed.push_back("'" + g->getName() + "'");
         }

@@ -334,6 +334,11 @@ TEST_F(CliTest, SolveWritesRadiosityWithMetadataAndPassesGridsThrough)
     EXPECT_LT(g->metaValue<float>("vdbrad:residual"), 1e-7f);
     EXPECT_EQ(g->metaValue<std::string>("vdbrad:lines"), "naive");
     EXPECT_EQ(g->metaValue<std::string>("vdbrad:version"), VDBRAD_VERSION_STRING);
+    const Result info = sh("vdbrad info out.vdb");
+    ASSERT_EQ(info.status, 0) << info.err;
+    EXPECT_NE(info.out.find("radiosity: float, values in [2, 2], directions 45"),
+        std::string::npos) << info.out;
+    EXPECT_EQ(info.out.find("passed through: 'radiosity'"), std::string::npos) << info.out;
 }
 
 TEST_F(CliTest, InterruptedSolveExitsCleanlyWithoutOutput)

@@ -16,7 +16,9 @@ findRegions(const VoxelIndex& voxels, const std::vector<openvdb::Vec3f>& normals
     Regions out;
     out.region.assign(voxels.size(), 0);
     if (voxels.empty()) return out;
-    const openvdb::CoordBBox box = voxels.bbox().expandBy(1);
+    // The box grown by two cells: the outer layer is marked as visited up front, so the fill
+    // never steps outside and needs no bounds checks; the layer inside it is empty (the outside).
+    const openvdb::CoordBBox box = voxels.bbox().expandBy(2);
     const openvdb::Coord dim = box.dim();
     const uint64_t ny = uint64_t(dim.y()), nz = uint64_t(dim.z());
     const uint64_t cells = uint64_t(dim.x()) * ny * nz;
@@ -37,6 +39,7 @@ findRegions(const VoxelIndex& voxels, const std::vector<openvdb::Vec3f>& normals
 
     // Each voxel's front cell: the first empty cell stepping along its normal.
     std::vector<uint64_t> front(voxels.size(), ~uint64_t(0));
+    const openvdb::CoordBBox inside = voxels.bbox().expandBy(1);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, voxels.size()),
         [&](const tbb::blocked_range<size_t>& r) {
             for (size_t v = r.begin(); v != r.end(); ++v) {
@@ -45,54 +48,52 @@ findRegions(const VoxelIndex& voxels, const std::vector<openvdb::Vec3f>& normals
                 for (int k = 1; k <= 3; ++k) {
                     const openvdb::Coord q = c + openvdb::Coord(int(std::lround(k * n[0])),
                         int(std::lround(k * n[1])), int(std::lround(k * n[2])));
-                    if (!box.isInside(q)) break;
+                    if (!inside.isInside(q)) break;
                     const uint64_t i = linear(q);
                     if (!isWall(i)) { front[v] = i; break; }
                 }
             }
         });
 
-    std::vector<openvdb::Coord> offsets;
+    std::vector<int64_t> offsets;
     for (int i = -1; i <= 1; ++i) for (int j = -1; j <= 1; ++j) for (int k = -1; k <= 1; ++k) {
         const int m = std::abs(i) + std::abs(j) + std::abs(k);
         if (m == 0 || (lines == LineType::Standard && m > 1)) continue;
-        offsets.emplace_back(i, j, k);
+        offsets.push_back((int64_t(i) * int64_t(ny) + j) * int64_t(nz) + k);
+    }
+    // The outer layer counts as visited: the fill stops there.
+    for (int axis = 0; axis < 3; ++axis) {
+        for (int side = 0; side < 2; ++side) {
+            openvdb::CoordBBox face = box;
+            face.min()[axis] = face.max()[axis] = side ? box.max()[axis] : box.min()[axis];
+            for (auto it = face.beginXYZ(); it; ++it) set(linear(*it));
+        }
     }
     // Breadth-first fill; the frontier of a fill through mostly empty space is a surface, not a
     // volume, so it stays small.
-    std::vector<openvdb::Coord> current, next;
+    std::vector<uint64_t> current, next;
     auto fill = [&](const std::function<void(uint64_t)>& onCell) {
         while (!current.empty()) {
             next.clear();
-            for (const openvdb::Coord& c : current) {
-                for (const openvdb::Coord& o : offsets) {
-                    const openvdb::Coord q = c + o;
-                    if (!box.isInside(q)) continue;
-                    const uint64_t i = linear(q);
+            for (const uint64_t c : current) {
+                for (const int64_t o : offsets) {
+                    const uint64_t i = uint64_t(int64_t(c) + o);
                     if (test(i)) continue;
                     set(i);
                     onCell(i);
-                    next.push_back(q);
+                    next.push_back(i);
                 }
             }
             current.swap(next);
         }
     };
-    // The outside: from the border shell (empty: the box was grown by one cell).
-    for (int axis = 0; axis < 3; ++axis) {
-        for (int side = 0; side < 2; ++side) {
-            openvdb::CoordBBox face = box;
-            const int v = side ? box.max()[axis] : box.min()[axis];
-            face.min()[axis] = face.max()[axis] = v;
-            for (auto it = face.beginXYZ(); it; ++it) {
-                const uint64_t i = linear(*it);
-                if (test(i)) continue;
-                set(i);
-                current.push_back(*it);
-            }
-        }
+    // The outside: from one cell of the empty layer inside the border (it is connected).
+    {
+        const uint64_t start = linear(box.min() + openvdb::Coord(1));
+        set(start);
+        current.assign(1, start);
+        fill([](uint64_t) {});
     }
-    fill([](uint64_t) {});
 
     // Cavities: fill again from every front cell the outside fill did not reach, numbering as
     // we go; only front cells need their number remembered.
@@ -109,8 +110,7 @@ findRegions(const VoxelIndex& voxels, const std::vector<openvdb::Vec3f>& normals
             const uint32_t id = ++out.cavities;
             it->second = id;
             set(f);
-            const uint64_t x = f / (ny * nz), y = (f / nz) % ny, z = f % nz;
-            current.assign(1, box.min() + openvdb::Coord(int(x), int(y), int(z)));
+            current.assign(1, f);
             fill([&](uint64_t i) {
                 auto c = cavityOf.find(i);
                 if (c != cavityOf.end()) c->second = id;
