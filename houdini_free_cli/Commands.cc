@@ -410,6 +410,10 @@ runSolve(const Arguments& a)
     o.maxIterations = a.getInt("iterations");
     o.tolerance = a.getFloat("tolerance");
     o.occlusionDepth = float(a.getFloat("occlusion-depth"));
+    const std::string update = a.getString("update");
+    if (update == "jacobi") o.update = UpdateScheme::Jacobi;
+    else if (update == "inplace") o.update = UpdateScheme::InPlace;
+    else throw UsageError("--update must be jacobi or inplace, got '" + update + "'");
     const std::string lines = a.getString("lines");
     if (lines == "naive") o.lines = LineType::Naive;
     else if (lines == "standard") o.lines = LineType::Standard;
@@ -530,6 +534,9 @@ commands()
                 {"iterations", OptionType::Int, "200", "50", "iteration cap, >= 1"},
                 {"tolerance", OptionType::Float, "1e-5", "1e-4",
                     "stop when max|B' - B| / max|B'| falls below this"},
+                {"update", OptionType::String, "inplace", "jacobi",
+                    "inplace (B updated after each half of the directions; fewer iterations) "
+                    "or jacobi (thesis eq. 4.11)"},
                 {"lines", OptionType::String, "naive", "standard",
                     "digital lines: naive (26-connected) or standard (6-connected)"},
                 {"occlusion-depth", OptionType::Float, "1", "1.5",

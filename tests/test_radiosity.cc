@@ -81,18 +81,22 @@ TEST_F(RadiosityTest, FurnacesAreExactForEveryAlbedo)
     for (const char* name : {"furnace-box", "furnace-sphere"}) {
         for (float rho : {0.f, 0.5f, 0.9f, 0.99f}) {
             const Scene scene = make(name, 12, rho, 2.f);
-            RadiosityOptions o;
-            o.directions = 50;
-            o.maxIterations = 5000;
-            o.tolerance = 1e-7;
-            RadiositySolver solver(scene, o);
-            solver.solve();
-            const double exact = 2.0 / (1.0 - rho);
-            double worst = 0.0;
-            for (float b : solver.grey()) worst = std::max(worst, std::abs(b - exact) / exact);
-            EXPECT_LT(worst, 1e-4) << name << " rho " << rho;
-            std::cout << name << " rho " << rho << ": " << solver.iterationCount()
-                      << " Jacobi iterations, worst relative error " << worst << "\n";
+            for (UpdateScheme update : {UpdateScheme::Jacobi, UpdateScheme::InPlace}) {
+                RadiosityOptions o;
+                o.directions = 50;
+                o.maxIterations = 5000;
+                o.tolerance = 1e-7;
+                o.update = update;
+                RadiositySolver solver(scene, o);
+                solver.solve();
+                const double exact = 2.0 / (1.0 - rho);
+                double worst = 0.0;
+                for (float b : solver.grey()) worst = std::max(worst, std::abs(b - exact) / exact);
+                const char* scheme = update == UpdateScheme::Jacobi ? "Jacobi" : "in-place";
+                EXPECT_LT(worst, 1e-4) << name << " rho " << rho << " " << scheme;
+                std::cout << name << " rho " << rho << ": " << solver.iterationCount() << " "
+                          << scheme << " iterations, worst relative error " << worst << "\n";
+            }
         }
     }
 }

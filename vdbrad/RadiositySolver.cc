@@ -69,6 +69,8 @@ struct RadiositySolver::Impl
     bool hitsKnown = false;                              // invZ renormalised for closed voxels
     std::vector<float> grey;
     std::vector<openvdb::Vec3f> rgb;
+    std::vector<std::vector<float>> greyGathered;           // per group, kept between iterations
+    std::vector<std::vector<openvdb::Vec3f>> rgbGathered;
 
     static int patternOf(int group) { return group % 4; }
     // The directions of group g: every other one of its pattern's.
@@ -85,6 +87,8 @@ struct RadiositySolver::Engine
     using AccT = typename Accumulator<ValueT>::Type;
     using WideT = typename Accumulator<ValueT>::Wide;
 
+    static std::vector<std::vector<AccT>>& accumulators(Impl& impl);
+
     static double iterate(RadiositySolver& s, std::vector<ValueT>& B,
         openvdb::util::NullInterrupter* interrupt)
     {
@@ -93,57 +97,18 @@ struct RadiositySolver::Engine
         Impl& impl = *s.mImpl;
         const size_t n = scene.size();
         const size_t dirs = s.mDirections.size();
-        // B in each pattern's order, so that the sweeps read it sequentially.
-        std::array<std::vector<ValueT>, 4> ordered;
-        for (size_t p = 0; p < 4; ++p) {
-            const Impl::Pattern& pattern = impl.patterns[p];
-            if (pattern.directions.empty()) continue;
-            ordered[p].resize(n);
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
-                [&](const tbb::blocked_range<size_t>& r) {
-                    for (size_t k = r.begin(); k != r.end(); ++k) ordered[p][k] = B[pattern.order[k]];
-                });
-        }
-        std::vector<std::vector<AccT>> gathered(static_cast<size_t>(kGroups));
+        // Per group, its directions' gathered sum; kept between iterations for in-place updates.
+        std::vector<std::vector<AccT>>& gathered = accumulators(impl);
+        gathered.resize(size_t(kGroups));
         // The first iteration also measures, per voxel, the weight of the directions that meet
-        // a voxel: closed-cavity voxels are renormalised over those (Enclosure.h).
+        // a voxel: closed-cavity voxels are renormalised over those (Enclosure.h). It is always
+        // a plain Jacobi step, so that every group has a sum before in-place updates use them.
         const bool measureHits = !impl.hitsKnown;
+        const int phases = (measureHits || s.mOptions.update == UpdateScheme::Jacobi) ? 1 : 2;
         std::vector<std::vector<float>> hits(static_cast<size_t>(kGroups));
         std::atomic<size_t> done{0};
         std::atomic<bool> cancelled{false};
-
-        tbb::parallel_for(tbb::blocked_range<int>(0, kGroups, 1),
-            [&](const tbb::blocked_range<int>& r) {
-                for (int g = r.begin(); g != r.end(); ++g) {
-                    const size_t p = size_t(Impl::patternOf(g));
-                    if (impl.patterns[p].directions.empty()) continue;
-                    const LineSweep& sweep = *impl.patterns[p].sweep;
-                    const std::vector<ValueT>& Bp = ordered[p];
-                    std::vector<AccT>& G = gathered[size_t(g)];
-                    G.assign(n, openvdb::zeroVal<AccT>());
-                    std::vector<float>* H = measureHits ? &hits[size_t(g)] : nullptr;
-                    if (H) H->assign(n, 0.f);
-                    LineSweep::Workspace<ValueT> work;
-                    impl.forDirections(g, [&](size_t k) {
-                        if (cancelled.load(std::memory_order_relaxed)) return;
-                        const float c = impl.coefficient[k];
-                        sweep.sweep(s.mDirections.direction(k), impl.reversed[k] != 0, work,
-                            [&](uint32_t y) { return Bp[y]; },
-                            [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
-                                if (seen) {
-                                    const float w = std::abs(sigmaDotN) * c;
-                                    G[x] += *seen * w;
-                                    if (H) (*H)[x] += w;
-                                }
-                            });
-                        const size_t d = ++done;
-                        if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
-                            cancelled = true;
-                        }
-                    });
-                }
-            });
-        if (cancelled) throw Cancelled("radiosity solve");
+        const std::vector<ValueT> previous = B;
 
         // Group g's arrays are in pattern g % 4's order: read voxel i at its position there.
         auto sumGroups = [&](auto& arrays, size_t i, auto zero) {
@@ -154,39 +119,100 @@ struct RadiositySolver::Engine
             }
             return sum;
         };
-        if (measureHits) {
+
+        for (int phase = 0; phase < phases; ++phase) {
+            // In two phases (in-place), groups 0-3 then 4-7 sweep, B being updated in between.
+            auto inPhase = [&](int g) { return phases == 1 || g / 4 == phase; };
+            // B in each pattern's order, so that the sweeps read it sequentially.
+            std::array<std::vector<ValueT>, 4> ordered;
+            for (size_t p = 0; p < 4; ++p) {
+                const Impl::Pattern& pattern = impl.patterns[p];
+                if (pattern.directions.empty()) continue;
+                ordered[p].resize(n);
+                tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                        for (size_t k = r.begin(); k != r.end(); ++k) {
+                            ordered[p][k] = B[pattern.order[k]];
+                        }
+                    });
+            }
+            tbb::parallel_for(tbb::blocked_range<int>(0, kGroups, 1),
+                [&](const tbb::blocked_range<int>& r) {
+                    for (int g = r.begin(); g != r.end(); ++g) {
+                        const size_t p = size_t(Impl::patternOf(g));
+                        if (!inPhase(g) || impl.patterns[p].directions.empty()) continue;
+                        const LineSweep& sweep = *impl.patterns[p].sweep;
+                        const std::vector<ValueT>& Bp = ordered[p];
+                        std::vector<AccT>& G = gathered[size_t(g)];
+                        G.assign(n, openvdb::zeroVal<AccT>());
+                        std::vector<float>* H = measureHits ? &hits[size_t(g)] : nullptr;
+                        if (H) H->assign(n, 0.f);
+                        LineSweep::Workspace<ValueT> work;
+                        impl.forDirections(g, [&](size_t k) {
+                            if (cancelled.load(std::memory_order_relaxed)) return;
+                            const float c = impl.coefficient[k];
+                            sweep.sweep(s.mDirections.direction(k), impl.reversed[k] != 0, work,
+                                [&](uint32_t y) { return Bp[y]; },
+                                [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
+                                    if (seen) {
+                                        const float w = std::abs(sigmaDotN) * c;
+                                        G[x] += *seen * w;
+                                        if (H) (*H)[x] += w;
+                                    }
+                                });
+                            const size_t d = ++done;
+                            if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
+                                cancelled = true;
+                            }
+                        });
+                    }
+                });
+            if (cancelled) throw Cancelled("radiosity solve");
+
+            if (measureHits) {
+                tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                        for (size_t i = r.begin(); i != r.end(); ++i) {
+                            if (impl.regions.region[i] == 0) continue;   // faces the outside
+                            const double h = sumGroups(hits, i, 0.0);
+                            if (h > 0.0) impl.invZ[i] = float(1.0 / h);
+                        }
+                    });
+                impl.hitsKnown = true;
+            }
             tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
                 [&](const tbb::blocked_range<size_t>& r) {
                     for (size_t i = r.begin(); i != r.end(); ++i) {
-                        if (impl.regions.region[i] == 0) continue;   // faces the open outside
-                        const double h = sumGroups(hits, i, 0.0);
-                        if (h > 0.0) impl.invZ[i] = float(1.0 / h);
+                        const WideT sum = sumGroups(gathered, i, openvdb::zeroVal<WideT>());
+                        const ValueT incoming = narrow(sum * double(impl.invZ[i]));
+                        B[i] = value<ValueT>(scene.emission(), i)
+                            + value<ValueT>(scene.albedo(), i) * incoming;
                     }
                 });
-            impl.hitsKnown = true;
         }
 
-        std::vector<float> change(n), size(n);
-        std::vector<ValueT> next(n);
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
-            for (size_t i = r.begin(); i != r.end(); ++i) {
-                const WideT sum = sumGroups(gathered, i, openvdb::zeroVal<WideT>());
-                const ValueT incoming = narrow(sum * double(impl.invZ[i]));
-                next[i] = value<ValueT>(scene.emission(), i)
-                    + value<ValueT>(scene.albedo(), i) * incoming;
-                change[i] = magnitudeOfDiff(next[i], B[i]);
-                size[i] = magnitude(next[i]);
-            }
-        });
         float maxChange = 0.f, maxSize = 0.f;
         for (size_t i = 0; i < n; ++i) {
-            maxChange = std::max(maxChange, change[i]);
-            maxSize = std::max(maxSize, size[i]);
+            maxChange = std::max(maxChange, magnitudeOfDiff(B[i], previous[i]));
+            maxSize = std::max(maxSize, magnitude(B[i]));
         }
-        B.swap(next);
         return maxSize > 0.f ? double(maxChange) / double(maxSize) : 0.0;
     }
 };
+
+template<>
+std::vector<std::vector<float>>&
+RadiositySolver::Engine<float>::accumulators(Impl& impl)
+{
+    return impl.greyGathered;
+}
+
+template<>
+std::vector<std::vector<openvdb::Vec3f>>&
+RadiositySolver::Engine<openvdb::Vec3f>::accumulators(Impl& impl)
+{
+    return impl.rgbGathered;
+}
 
 RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& options)
     : mScene(scene)
