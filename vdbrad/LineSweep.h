@@ -107,6 +107,58 @@ public:
     void sweep(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work,
         LoadT&& load, VisitT&& visit) const
     {
+        const size_t n = mCoords.size();
+        const size_t lines = assignLines(sigma, reversed, work);
+        auto along = [&](size_t k) { return uint32_t(reversed ? n - 1 - k : k); };
+        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
+        for (float travel : {1.f, -1.f}) {
+            work.fronts.assign(lines, Front<PayloadT>());
+            const openvdb::Vec3f t = s * travel;
+            for (size_t m = 0; m < n; ++m) {
+                const size_t k = travel > 0.f ? m : n - 1 - m;
+                step(along(k), work.fronts[work.slots[k]], t, travel, load, visit);
+            }
+        }
+    }
+
+    /// @brief The same report as sweep(), built the way the thesis does (§6.2.1.1): a stable
+    /// counting sort of the voxels into explicit per-line lists, then each list walked in both
+    /// senses. Kept to measure against the streaming sweep (BENCHMARKS.md), which needs no lists.
+    template<typename PayloadT, typename LoadT, typename VisitT>
+    void sweepLists(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work,
+        std::vector<uint32_t>& starts, std::vector<uint32_t>& listed, LoadT&& load,
+        VisitT&& visit) const
+    {
+        const size_t n = mCoords.size();
+        const size_t lines = assignLines(sigma, reversed, work);
+        auto along = [&](size_t k) { return uint32_t(reversed ? n - 1 - k : k); };
+        starts.assign(lines + 1, 0);
+        for (size_t k = 0; k < n; ++k) ++starts[work.slots[k] + 1];
+        for (size_t l = 0; l < lines; ++l) starts[l + 1] += starts[l];
+        listed.resize(n);
+        {
+            std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
+            for (size_t k = 0; k < n; ++k) listed[fill[work.slots[k]]++] = along(k);
+        }
+        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
+        for (size_t l = 0; l < lines; ++l) {
+            Front<PayloadT> forward, backward;
+            for (uint32_t e = starts[l]; e < starts[l + 1]; ++e) {
+                step(listed[e], forward, s, 1.f, load, visit);
+            }
+            for (uint32_t e = starts[l + 1]; e > starts[l]; --e) {
+                step(listed[e - 1], backward, -s, -1.f, load, visit);
+            }
+        }
+    }
+
+private:
+    static constexpr uint32_t kSender = 0x80000000u;   // positions are < 2^31 (VoxelIndex)
+
+    /// Fill work.slots (the line of the k-th voxel along +sigma) and return the number of lines.
+    template<typename PayloadT>
+    size_t assignLines(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work) const
+    {
         LinePartition partition(sigma, mLines);
         // Centred on the scene so that a symmetric scene gets symmetric lines.
         partition.centreOn(mMin + mMax);
@@ -144,19 +196,8 @@ public:
             }
             lines = work.ids.size();
         }
-        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
-        for (float travel : {1.f, -1.f}) {
-            work.fronts.assign(lines, Front<PayloadT>());
-            const openvdb::Vec3f t = s * travel;
-            for (size_t m = 0; m < n; ++m) {
-                const size_t k = travel > 0.f ? m : n - 1 - m;
-                step(along(k), work.fronts[work.slots[k]], t, travel, load, visit);
-            }
-        }
+        return lines;
     }
-
-private:
-    static constexpr uint32_t kSender = 0x80000000u;   // positions are < 2^31 (VoxelIndex)
 
     /// Visit voxel x with the frontier @a front of its line, light travelling along @a t.
     template<typename PayloadT, typename LoadT, typename VisitT>
