@@ -75,7 +75,8 @@ public:
     ~RadiositySolver();
 
     /// @brief One Jacobi iteration over every direction; returns the relative residual.
-    /// @throw vdbrad::Cancelled if @a interrupt asks to stop (B keeps the previous iterate)
+    /// @throw vdbrad::Cancelled if @a interrupt asks to stop (B may then hold a partly updated
+    ///        iterate: discard the solver or keep iterating)
     double iterate(openvdb::util::NullInterrupter* interrupt = nullptr);
 
     /// @brief Iterate until the tolerance or the iteration cap.
