@@ -14,15 +14,6 @@ findGrid(const openvdb::GridPtrVec& grids, const std::string& name)
     return nullptr;
 }
 
-std::string
-describeGrid(const openvdb::GridBase& grid)
-{
-    std::ostringstream os;
-    os << "'" << grid.getName() << "' (" << grid.valueType() << ", "
-       << openvdb::GridBase::gridClassToString(grid.getGridClass()) << ")";
-    return os.str();
-}
-
 namespace {
 
 bool isLevelSet(const openvdb::GridBase& g)

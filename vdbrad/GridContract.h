@@ -57,7 +57,4 @@ void checkTransform(const openvdb::GridBase& grid);
 /// @throw openvdb::ValueError unless @a grid is on the same transform as @a reference.
 void checkSameTransform(const openvdb::GridBase& grid, const openvdb::GridBase& reference);
 
-/// "'name' (type, class)" for messages.
-std::string describeGrid(const openvdb::GridBase& grid);
-
 } // namespace vdbrad

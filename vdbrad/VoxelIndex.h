@@ -52,7 +52,6 @@ public:
 
     /// The index tree: active exactly on the set, value = array index, background -1.
     const IndexTree& tree() const { return *mTree; }
-    IndexTree::ConstPtr treePtr() const { return mTree; }
 
     /// Index-space bounding box of the set (empty box if the set is empty).
     openvdb::CoordBBox bbox() const;
