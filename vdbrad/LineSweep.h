@@ -36,8 +36,10 @@
 
 #include <openvdb/openvdb.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
+#include <type_traits>
 #include <unordered_map>
 #include <vector>
 
@@ -91,6 +93,10 @@ public:
     struct Workspace
     {
         std::vector<uint32_t> slots;     // line slot of the k-th visited voxel (pass 1 -> pass 2)
+        // Bubbles (standard lines): pairs (k, k') of consecutive voxels of one line met in the
+        // wrong order (k < k' in visiting order, k' first along the line), sorted by k' and by k.
+        std::vector<std::pair<uint32_t, uint32_t>> bubblesByLater, bubblesByEarlier;
+        std::vector<uint32_t> lastOnLine;                    // scratch for finding them
         std::vector<Front<PayloadT>> fronts;
         std::unordered_map<LineKey, uint32_t, LineKeyHash> ids;   // sparse scenes only
     };
@@ -114,10 +120,41 @@ public:
         for (float travel : {1.f, -1.f}) {
             work.fronts.assign(lines, Front<PayloadT>());
             const openvdb::Vec3f t = s * travel;
-            for (size_t m = 0; m < n; ++m) {
-                const size_t k = travel > 0.f ? m : n - 1 - m;
-                step(along(k), work.fronts[work.slots[k]], t, travel, load, visit);
-            }
+            // Bubbles: each pass skips the voxel of a pair it meets first and visits it right
+            // after its partner. Cursors count pairs from the pass's start.
+            const bool forward = travel > 0.f;
+            const auto& skips = forward ? work.bubblesByEarlier : work.bubblesByLater;
+            const auto& replays = forward ? work.bubblesByLater : work.bubblesByEarlier;
+            auto nth = [&](const auto& pairs, size_t i) -> const std::pair<uint32_t, uint32_t>& {
+                return pairs[forward ? i : pairs.size() - 1 - i];
+            };
+            // Compiled twice, so that bubble-free passes (all naive ones) carry no cursor tests.
+            auto pass = [&](auto repair) {
+                size_t skip = 0, replay = 0;
+                for (size_t m = 0; m < n; ++m) {
+                    const size_t k = forward ? m : n - 1 - m;
+                    if constexpr (decltype(repair)::value) {
+                        if (skip < skips.size()) {
+                            const auto& b = nth(skips, skip);
+                            if ((forward ? b.first : b.second) == k) { ++skip; continue; }
+                        }
+                    }
+                    step(along(k), work.fronts[work.slots[k]], t, travel, load, visit);
+                    if constexpr (decltype(repair)::value) {
+                        if (replay < replays.size()) {
+                            const auto& b = nth(replays, replay);
+                            if ((forward ? b.second : b.first) == k) {
+                                ++replay;
+                                const uint32_t held = forward ? b.first : b.second;
+                                step(along(held), work.fronts[work.slots[held]], t, travel, load,
+                                    visit);
+                            }
+                        }
+                    }
+                }
+            };
+            if (skips.empty()) pass(std::false_type());
+            else pass(std::true_type());
         }
     }
 
@@ -141,6 +178,16 @@ public:
             for (size_t k = 0; k < n; ++k) listed[fill[work.slots[k]]++] = along(k);
         }
         const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
+        if (mLines == LineType::Standard) {
+            // The exact line order, bubbles included (the counting sort kept the visiting order).
+            const LinePartition partition(sigma, mLines);
+            for (size_t l = 0; l < lines; ++l) {
+                std::sort(listed.begin() + starts[l], listed.begin() + starts[l + 1],
+                    [&](uint32_t a, uint32_t b) {
+                        return partition.position(mCoords[a]) < partition.position(mCoords[b]);
+                    });
+            }
+        }
         for (size_t l = 0; l < lines; ++l) {
             Front<PayloadT> forward, backward;
             for (uint32_t e = starts[l]; e < starts[l + 1]; ++e) {
@@ -196,6 +243,26 @@ private:
             }
             lines = work.ids.size();
         }
+
+        // Bubbles (thesis §4.3.3.5): on a standard line, the two middle voxels of a 2x2 block
+        // (LinePartition.h) are incomparable, so the visiting order may meet them in either
+        // order; only those pairs can be inverted (tests/test_leaforder.cc). Each inversion is
+        // repaired in the passes by holding the voxel met first back until its partner, the
+        // line's next voxel, has been visited: both passes then follow the exact line order.
+        work.bubblesByLater.clear();
+        if (mLines == LineType::Standard) {
+            work.lastOnLine.assign(lines, kNone);
+            for (size_t k = 0; k < n; ++k) {
+                uint32_t& last = work.lastOnLine[work.slots[k]];
+                if (last != kNone && partition.position(mCoords[along(k)])
+                        < partition.position(mCoords[along(last)])) {
+                    work.bubblesByLater.emplace_back(last, uint32_t(k));
+                }
+                last = uint32_t(k);
+            }
+        }
+        work.bubblesByEarlier = work.bubblesByLater;
+        std::sort(work.bubblesByEarlier.begin(), work.bubblesByEarlier.end());
         return lines;
     }
 
