@@ -24,6 +24,7 @@ using vdbrad::LineKey;
 using vdbrad::LinePartition;
 using vdbrad::LineType;
 using openvdb::Coord;
+using openvdb::CoordBBox;
 
 namespace vdbrad {
 // Readable failure messages for keys.
@@ -620,4 +621,58 @@ TEST(LinePartition, CentredPartitionsAreMirrorImagesAndStillLines)
             }
         }
     }
+}
+
+TEST(LinePartition, BoxKeysEqualKeysInsideTheirBox)
+{
+    // The multiplication-only keys must equal key() for every voxel of the box, for both line
+    // types, every sign pattern, boxes on either side of the origin and near the int32 limits.
+    std::mt19937 rng(31);
+    std::uniform_int_distribution<int> comp(-12, 12);
+    const std::vector<CoordBBox> boxes = {
+        CoordBBox(Coord(-40, -33, -17), Coord(41, 30, 52)),
+        CoordBBox(Coord(1000, 2000, -3000), Coord(1100, 2050, -2900)),
+        CoordBBox(Coord(-2000000, -1000000, 5), Coord(1500000, 3, 2000000)),
+        CoordBBox(Coord(-(1 << 30), -(1 << 30), -(1 << 30)), Coord(1 << 30, 1 << 30, 1 << 30))};
+    size_t checked = 0, validBoxes = 0;
+    for (int d = 0; d < 60; ++d) {
+        const Coord sigma(comp(rng), comp(rng), comp(rng));
+        if (sigma == Coord(0)) continue;
+        if (std::gcd(std::gcd(std::abs(sigma.x()), std::abs(sigma.y())), std::abs(sigma.z())) != 1) {
+            continue;
+        }
+        for (LineType type : {LineType::Naive, LineType::Standard}) {
+            for (const CoordBBox& box : boxes) {
+                LinePartition p(sigma, type);
+                p.centreOn(box.min() + box.max());
+                const LinePartition::BoxKeys keys(p, box);
+                if (!keys.valid()) continue;
+                ++validBoxes;
+                std::uniform_int_distribution<int> x(box.min().x(), box.max().x()),
+                    y(box.min().y(), box.max().y()), z(box.min().z(), box.max().z());
+                for (int s = 0; s < 2000; ++s) {
+                    // Random voxels, the corners, and voxels on line bounds near the centre.
+                    Coord c(x(rng), y(rng), z(rng));
+                    if (s < 8) {
+                        c = Coord(s & 1 ? box.max().x() : box.min().x(),
+                            s & 2 ? box.max().y() : box.min().y(),
+                            s & 4 ? box.max().z() : box.min().z());
+                    } else if (s < 400) {
+                        const Coord mid = (box.min() + box.max()) >> 1;
+                        c = mid + Coord(comp(rng), comp(rng), comp(rng));
+                    }
+                    ASSERT_EQ(keys.key(c), p.key(c)) << sigma << " " << c;
+                    ++checked;
+                }
+            }
+        }
+    }
+    EXPECT_GT(validBoxes, 250u);
+    EXPECT_GT(checked, 500000u);
+    // Where the shifted numerators could pass 2^64 / 2w the box is refused (callers fall back
+    // to key()): a huge direction over the whole int32 range.
+    LinePartition huge(Coord(1 << 20, (1 << 20) - 1, 3), LineType::Standard);
+    huge.centreOn(Coord(0));
+    EXPECT_FALSE(LinePartition::BoxKeys(huge,
+        CoordBBox(Coord(INT_MIN + 1), Coord(INT_MAX))).valid());
 }

@@ -36,6 +36,7 @@
 #include <openvdb/Exceptions.h>
 #include <openvdb/math/Coord.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -240,6 +241,83 @@ public:
     int64_t omegaAB() const { return mOmegaAB; }
     /// Divisor of the j form: a (naive) or a + c (standard).
     int64_t omegaAC() const { return mOmegaAC; }
+
+    /// @brief key() of a centred partition for the voxels of one box, with no division: what the
+    /// sweeps call once per voxel and direction.
+    /// @details A floor division by the constant 2w becomes the high half of a 64x64-bit product
+    /// with M = floor(2^64 / 2w) + 1 on a numerator shifted to be >= 0: for 0 <= n < 2^64 / 2w,
+    /// n M / 2^64 exceeds n / 2w by less than 1 / 2w, never enough to reach the next integer.
+    /// The box's corners bound the form values; valid() is false when the shifted numerators
+    /// could leave that range (coordinates near the int32 limits), and callers then use key().
+    class BoxKeys
+    {
+    public:
+        /// @throw openvdb::ValueError if @a partition is not centred (centreOn())
+        BoxKeys(const LinePartition& partition, const openvdb::math::CoordBBox& box)
+        {
+            if (!partition.mCentred) {
+                OPENVDB_THROW(openvdb::ValueError, "BoxKeys needs a centred LinePartition");
+            }
+            mValid = init(mI, partition.mFormI, partition.mOffsetI, partition.mOmegaAB, box)
+                && init(mJ, partition.mFormJ, partition.mOffsetJ, partition.mOmegaAC, box);
+        }
+
+        bool valid() const { return mValid; }
+
+        /// Equal to LinePartition::key(@a xyz) for @a xyz inside the box, when valid().
+        LineKey key(const openvdb::math::Coord& xyz) const
+        {
+            return LineKey{index(mI, xyz), index(mJ, xyz)};
+        }
+
+    private:
+        struct Form
+        {
+            std::array<int64_t, 3> twiceForm{};   // 2 F
+            int64_t offset = 0;                   // F(twiceCentre)
+            int64_t omega = 1;
+            int64_t shift = 0;                    // a multiple of 2w making numerators >= 0
+            int64_t shiftQuotient = 0;            // shift / 2w
+            uint64_t magic = 0;                   // floor(2^64 / 2w) + 1
+        };
+
+        static bool init(Form& f, const std::array<int64_t, 3>& form, int64_t offset,
+            int64_t omega, const openvdb::math::CoordBBox& box)
+        {
+            for (int k = 0; k < 3; ++k) f.twiceForm[size_t(k)] = 2 * form[size_t(k)];
+            f.offset = offset;
+            f.omega = omega;
+            const int64_t d = 2 * omega;
+            int64_t lo = 0, hi = 0;
+            for (int c = 0; c < 8; ++c) {
+                const openvdb::math::Coord corner(c & 1 ? box.max().x() : box.min().x(),
+                    c & 2 ? box.max().y() : box.min().y(), c & 4 ? box.max().z() : box.min().z());
+                const int64_t t = 2 * dot(form, corner) - offset;
+                lo = c == 0 ? t : std::min(lo, t);
+                hi = c == 0 ? t : std::max(hi, t);
+            }
+            // Numerators lie in [t - 1, t + w] (see centredIndex).
+            f.shiftQuotient = lo - 1 < 0 ? (1 - lo + d - 1) / d : 0;
+            f.shift = f.shiftQuotient * d;
+            f.magic = ~uint64_t(0) / uint64_t(d) + 1;
+            const int64_t top = hi + omega + f.shift;   // < 2^53 (kMaxComponent)
+            return uint64_t(top) < (~uint64_t(0)) / uint64_t(d);
+        }
+
+        static int64_t index(const Form& f, const openvdb::math::Coord& xyz)
+        {
+            const int64_t t = f.twiceForm[0] * xyz[0] + f.twiceForm[1] * xyz[1]
+                + f.twiceForm[2] * xyz[2] - f.offset;
+            // centredIndex()'s numerator: odd t as is, even t moved half a period, away from 0.
+            const int64_t n = t + ((t & 1) ? 0 : f.omega - int64_t(t < 0)) + f.shift;
+            __extension__ using Wide = unsigned __int128;
+            const uint64_t q = uint64_t((Wide(uint64_t(n)) * f.magic) >> 64);
+            return int64_t(q) - f.shiftQuotient;
+        }
+
+        Form mI, mJ;
+        bool mValid = false;
+    };
 
 private:
     static int64_t dot(const std::array<int64_t, 3>& f, const openvdb::math::Coord& xyz)

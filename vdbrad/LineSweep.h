@@ -228,21 +228,27 @@ private:
         size_t lines = 0;
         // Position of the k-th voxel along +sigma.
         auto along = [&](size_t k) { return uint32_t(reversed ? n - 1 - k : k); };
-        if (dense <= 4.0 * double(n) + 65536.0) {
-            const int64_t nj = j1 - j0 + 1;
-            lines = size_t(dense);
-            for (size_t k = 0; k < n; ++k) {
-                const LineKey key = partition.key(mCoords[along(k)]);
-                work.slots[k] = uint32_t((key.i - i0) * nj + (key.j - j0));
+        auto fill = [&](auto&& keyOf) {
+            if (dense <= 4.0 * double(n) + 65536.0) {
+                const int64_t nj = j1 - j0 + 1;
+                lines = size_t(dense);
+                for (size_t k = 0; k < n; ++k) {
+                    const LineKey key = keyOf(mCoords[along(k)]);
+                    work.slots[k] = uint32_t((key.i - i0) * nj + (key.j - j0));
+                }
+            } else {
+                work.ids.clear();
+                for (size_t k = 0; k < n; ++k) {
+                    const LineKey key = keyOf(mCoords[along(k)]);
+                    work.slots[k] = work.ids.emplace(key, uint32_t(work.ids.size())).first->second;
+                }
+                lines = work.ids.size();
             }
-        } else {
-            work.ids.clear();
-            for (size_t k = 0; k < n; ++k) {
-                const LineKey key = partition.key(mCoords[along(k)]);
-                work.slots[k] = work.ids.emplace(key, uint32_t(work.ids.size())).first->second;
-            }
-            lines = work.ids.size();
-        }
+        };
+        // Division-free keys (the hottest arithmetic of a sweep) wherever the box allows them.
+        const LinePartition::BoxKeys boxKeys(partition, openvdb::CoordBBox(mMin, mMax));
+        if (boxKeys.valid()) fill([&](const openvdb::Coord& c) { return boxKeys.key(c); });
+        else fill([&](const openvdb::Coord& c) { return partition.key(c); });
 
         // Bubbles (thesis §4.3.3.5): on a standard line, the two middle voxels of a 2x2 block
         // (LinePartition.h) are incomparable, so the visiting order may meet them in either
