@@ -413,7 +413,10 @@ runSolve(const Arguments& a)
     const std::string update = a.getString("update");
     if (update == "jacobi") o.update = UpdateScheme::Jacobi;
     else if (update == "inplace") o.update = UpdateScheme::InPlace;
-    else throw UsageError("--update must be jacobi or inplace, got '" + update + "'");
+    else if (update == "progressive") o.update = UpdateScheme::Progressive;
+    else {
+        throw UsageError("--update must be jacobi, inplace or progressive, got '" + update + "'");
+    }
     const std::string lines = a.getString("lines");
     if (lines == "naive") o.lines = LineType::Naive;
     else if (lines == "standard") o.lines = LineType::Standard;
@@ -535,8 +538,9 @@ commands()
                 {"tolerance", OptionType::Float, "1e-5", "1e-4",
                     "stop when max|B' - B| / max|B'| falls below this"},
                 {"update", OptionType::String, "inplace", "jacobi",
-                    "inplace (B updated after each half of the directions; fewer iterations) "
-                    "or jacobi (thesis eq. 4.11)"},
+                    "inplace (B updated after each half of the directions; fewer iterations), "
+                    "jacobi (thesis eq. 4.11) or progressive (shoots the unshot radiosity: "
+                    "iteration k = k bounces)"},
                 {"lines", OptionType::String, "naive", "standard",
                     "digital lines: naive (26-connected) or standard (6-connected)"},
                 {"occlusion-depth", OptionType::Float, "1", "1.5",

@@ -83,7 +83,8 @@ TEST_F(RadiosityTest, FurnacesAreExactForEveryAlbedo)
     for (const char* name : {"furnace-box", "furnace-sphere"}) {
         for (float rho : {0.f, 0.5f, 0.9f, 0.99f}) {
             const Scene scene = make(name, 12, rho, 2.f);
-            for (UpdateScheme update : {UpdateScheme::Jacobi, UpdateScheme::InPlace}) {
+            for (UpdateScheme update :
+                {UpdateScheme::Jacobi, UpdateScheme::InPlace, UpdateScheme::Progressive}) {
                 RadiosityOptions o;
                 o.directions = 50;
                 o.maxIterations = 5000;
@@ -94,12 +95,42 @@ TEST_F(RadiosityTest, FurnacesAreExactForEveryAlbedo)
                 const double exact = 2.0 / (1.0 - rho);
                 double worst = 0.0;
                 for (float b : solver.grey()) worst = std::max(worst, std::abs(b - exact) / exact);
-                const char* scheme = update == UpdateScheme::Jacobi ? "Jacobi" : "in-place";
+                const char* scheme = update == UpdateScheme::Jacobi ? "Jacobi"
+                    : update == UpdateScheme::InPlace ? "in-place" : "progressive";
                 EXPECT_LT(worst, 1e-4) << name << " rho " << rho << " " << scheme;
                 std::cout << name << " rho " << rho << ": " << solver.iterationCount() << " "
                           << scheme << " iterations, worst relative error " << worst << "\n";
             }
         }
+    }
+}
+
+TEST_F(RadiosityTest, ProgressiveShootingFollowsTheJacobiIterates)
+{
+    // Shooting the unshot radiosity sums the Neumann series term by term: iterate k equals
+    // Jacobi's iterate k (E + rho G E + ... + (rho G)^k E) up to float rounding (1e-5 relative
+    // to max B), and its residual is the last bounce's share. RGB Cornell box, 4 iterations.
+    const Scene scene = make("cornell", 32);
+    RadiosityOptions o;
+    o.directions = 100;
+    o.tolerance = 0.0;
+    o.update = UpdateScheme::Jacobi;
+    RadiositySolver jacobi(scene, o);
+    o.update = UpdateScheme::Progressive;
+    RadiositySolver shooting(scene, o);
+    for (int k = 1; k <= 4; ++k) {
+        const double rj = jacobi.iterate(), rs = shooting.iterate();
+        double worst = 0.0, maxB = 0.0;
+        for (size_t i = 0; i < scene.size(); ++i) {
+            for (int c = 0; c < 3; ++c) {
+                maxB = std::max(maxB, double(jacobi.rgb()[i][c]));
+                worst = std::max(worst,
+                    std::abs(double(jacobi.rgb()[i][c]) - double(shooting.rgb()[i][c])));
+            }
+        }
+        EXPECT_LT(worst / maxB, 1e-5) << "iteration " << k;
+        EXPECT_NEAR(rs, rj, 1e-4 * rj) << "iteration " << k;
+        EXPECT_GT(rj, 0.0);
     }
 }
 

@@ -69,6 +69,8 @@ struct RadiositySolver::Impl
     bool hitsKnown = false;                              // invZ renormalised for closed voxels
     std::vector<float> grey;
     std::vector<openvdb::Vec3f> rgb;
+    std::vector<float> greyUnshot;                       // progressive shooting only
+    std::vector<openvdb::Vec3f> rgbUnshot;
     std::vector<std::vector<float>> greyGathered;           // per group, kept between iterations
     std::vector<std::vector<openvdb::Vec3f>> rgbGathered;
 
@@ -88,6 +90,7 @@ struct RadiositySolver::Engine
     using WideT = typename Accumulator<ValueT>::Wide;
 
     static std::vector<std::vector<AccT>>& accumulators(Impl& impl);
+    static std::vector<ValueT>& unshot(Impl& impl);
 
     static double iterate(RadiositySolver& s, std::vector<ValueT>& B,
         openvdb::util::NullInterrupter* interrupt)
@@ -104,7 +107,13 @@ struct RadiositySolver::Engine
         // a voxel: closed-cavity voxels are renormalised over those (Enclosure.h). It is always
         // a plain Jacobi step, so that every group has a sum before in-place updates use them.
         const bool measureHits = !impl.hitsKnown;
-        const int phases = (measureHits || s.mOptions.update == UpdateScheme::Jacobi) ? 1 : 2;
+        const bool inPlace = s.mOptions.update == UpdateScheme::InPlace;
+        const int phases = (measureHits || !inPlace) ? 1 : 2;
+        // Progressive shooting: the sweeps carry the unshot radiosity U, whose gathered light
+        // is both added to B and the next U.
+        const bool shooting = s.mOptions.update == UpdateScheme::Progressive;
+        std::vector<ValueT>& U = unshot(impl);
+        const std::vector<ValueT>& source = shooting ? U : B;
         std::vector<std::vector<float>> hits(static_cast<size_t>(kGroups));
         std::atomic<size_t> done{0};
         std::atomic<bool> cancelled{false};
@@ -132,7 +141,7 @@ struct RadiositySolver::Engine
                 tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
                     [&](const tbb::blocked_range<size_t>& r) {
                         for (size_t k = r.begin(); k != r.end(); ++k) {
-                            ordered[p][k] = B[pattern.order[k]];
+                            ordered[p][k] = source[pattern.order[k]];
                         }
                     });
             }
@@ -185,8 +194,13 @@ struct RadiositySolver::Engine
                     for (size_t i = r.begin(); i != r.end(); ++i) {
                         const WideT sum = sumGroups(gathered, i, openvdb::zeroVal<WideT>());
                         const ValueT incoming = narrow(sum * double(impl.invZ[i]));
-                        B[i] = value<ValueT>(scene.emission(), i)
-                            + value<ValueT>(scene.albedo(), i) * incoming;
+                        if (shooting) {
+                            U[i] = value<ValueT>(scene.albedo(), i) * incoming;
+                            B[i] += U[i];
+                        } else {
+                            B[i] = value<ValueT>(scene.emission(), i)
+                                + value<ValueT>(scene.albedo(), i) * incoming;
+                        }
                     }
                 });
         }
@@ -212,6 +226,20 @@ std::vector<std::vector<openvdb::Vec3f>>&
 RadiositySolver::Engine<openvdb::Vec3f>::accumulators(Impl& impl)
 {
     return impl.rgbGathered;
+}
+
+template<>
+std::vector<float>&
+RadiositySolver::Engine<float>::unshot(Impl& impl)
+{
+    return impl.greyUnshot;
+}
+
+template<>
+std::vector<openvdb::Vec3f>&
+RadiositySolver::Engine<openvdb::Vec3f>::unshot(Impl& impl)
+{
+    return impl.rgbUnshot;
 }
 
 RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& options)
@@ -291,6 +319,11 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     } else {
         impl.grey.resize(n);
         for (size_t i = 0; i < n; ++i) impl.grey[i] = scene.emission().grey(i);
+    }
+    // Nothing has been shot yet: all of E is unshot.
+    if (options.update == UpdateScheme::Progressive) {
+        impl.greyUnshot = impl.grey;
+        impl.rgbUnshot = impl.rgb;
     }
 }
 

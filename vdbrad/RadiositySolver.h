@@ -12,7 +12,8 @@
 // Iteration: every iteration sweeps every direction (both senses). Jacobi gathers from the
 // previous iterate and replaces B at the end; in-place (default) sweeps the directions in two
 // halves and updates B after each, so the second half gathers light the first half just moved
-// (block Gauss-Seidel over directions; fewer iterations, same cost per iteration). The relative
+// (block Gauss-Seidel over directions; fewer iterations, same cost per iteration); progressive
+// shooting sweeps the unshot radiosity and adds what it delivers (one bounce per iteration). The relative
 // residual max|B' - B| / max|B'| over a whole iteration is reported per iteration. Precision: storage is float; each accumulator group sums about
 // directions / kGroups terms per voxel in float (~1e-6 relative), and the groups, the
 // per-voxel normalisation and the residual are computed in double.
@@ -43,7 +44,13 @@ enum class UpdateScheme
     Jacobi,
     /// Gauss-Seidel-like: the directions are swept in two halves and B is updated after each, so
     /// the second half already gathers the first half's light.
-    InPlace
+    InPlace,
+    /// Progressive shooting: the sweeps carry the unshot radiosity U (initially E); what it
+    /// delivers, rho * gathered, is added to B and becomes the next U. Iterate k holds the
+    /// light of paths of up to k bounces (iteration 1 = direct light), the residual is the
+    /// last bounce's share, and nothing is recomputed from E: the Neumann series summed term
+    /// by term (the same iterates as Jacobi, up to rounding).
+    Progressive
 };
 
 struct RadiosityOptions
@@ -59,7 +66,8 @@ struct RadiosityOptions
     LineType lines = LineType::Naive;
     /// Occlusion depth in voxels (LineSweep), > 0.
     float occlusionDepth = 1.f;
-    /// Jacobi or in-place updates (the first iteration is always Jacobi).
+    /// Jacobi, in-place or progressive-shooting updates (an in-place solve's first iteration is
+    /// a Jacobi one).
     UpdateScheme update = UpdateScheme::InPlace;
 };
 
