@@ -410,6 +410,10 @@ runSolve(const Arguments& a)
     o.maxIterations = a.getInt("iterations");
     o.tolerance = a.getFloat("tolerance");
     o.occlusionDepth = float(a.getFloat("occlusion-depth"));
+    const std::string method = a.getString("method");
+    if (method == "sweep") o.visibility = Visibility::Sweep;
+    else if (method == "raycast") o.visibility = Visibility::RayCast;
+    else throw UsageError("--method must be sweep or raycast, got '" + method + "'");
     const std::string update = a.getString("update");
     if (update == "jacobi") o.update = UpdateScheme::Jacobi;
     else if (update == "inplace") o.update = UpdateScheme::InPlace;
@@ -541,6 +545,9 @@ commands()
                     "inplace (B updated after each half of the directions; fewer iterations), "
                     "jacobi (thesis eq. 4.11) or progressive (shoots the unshot radiosity: "
                     "iteration k = k bounces)"},
+                {"method", OptionType::String, "sweep", "raycast",
+                    "sweep (the line sweeps) or raycast (the reference: marches every "
+                    "receiver's line through the tree; same lines and rule, far slower)"},
                 {"lines", OptionType::String, "naive", "standard",
                     "digital lines: naive (26-connected) or standard (6-connected)"},
                 {"occlusion-depth", OptionType::Float, "1", "1.5",

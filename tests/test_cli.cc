@@ -341,6 +341,38 @@ TEST_F(CliTest, SolveWritesRadiosityWithMetadataAndPassesGridsThrough)
     EXPECT_EQ(info.out.find("passed through: 'radiosity'"), std::string::npos) << info.out;
 }
 
+TEST_F(CliTest, RayCastMethodGivesTheSweepsRadiosity)
+{
+    // --method raycast runs the reference visibility; on the same lines it must write the same
+    // radiosity as the sweeps (the library test checks this per voxel on more scenes).
+    Result r = sh("vdbrad make cornell c.vdb --res 16 --quiet && "
+                  "vdbrad solve c.vdb s.vdb --directions 50 --iterations 3 --quiet && "
+                  "vdbrad solve c.vdb r.vdb --directions 50 --iterations 3 --method raycast "
+                  "--lines naive --quiet");
+    ASSERT_EQ(r.status, 0) << r.err;
+    auto load = [&](const std::string& name) {
+        return openvdb::GridBase::constGrid<openvdb::Vec3SGrid>(
+            findGrid(readVdbFile(path(name)).grids, "radiosity"));
+    };
+    const auto s = load("s.vdb"), ray = load("r.vdb");
+    ASSERT_TRUE(s && ray);
+    ASSERT_EQ(s->activeVoxelCount(), ray->activeVoxelCount());
+    float maxB = 0.f, worst = 0.f;
+    auto acc = ray->getConstAccessor();
+    for (auto it = s->cbeginValueOn(); it; ++it) {
+        for (int c = 0; c < 3; ++c) {
+            maxB = std::max(maxB, (*it)[c]);
+            worst = std::max(worst, std::abs((*it)[c] - acc.getValue(it.getCoord())[c]));
+        }
+    }
+    EXPECT_GT(maxB, 0.f);
+    EXPECT_LE(worst, 1e-5f * maxB);
+    r = sh("vdbrad solve c.vdb x.vdb --method rays");
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("--method must be sweep or raycast"), std::string::npos) << r.err;
+    EXPECT_FALSE(exists(path("x.vdb")));
+}
+
 TEST_F(CliTest, InterruptedSolveExitsCleanlyWithoutOutput)
 {
     const Result made = sh("vdbrad make cornell big.vdb --res 96 --quiet");

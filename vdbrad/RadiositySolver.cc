@@ -4,6 +4,7 @@
 #include "vdbrad/Errors.h"
 #include "vdbrad/LeafOrder.h"
 #include "vdbrad/LineSweep.h"
+#include "vdbrad/RayCastVisibility.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -62,6 +63,7 @@ struct RadiositySolver::Impl
         std::vector<size_t> directions;
     };
     std::array<Pattern, 4> patterns;
+    std::unique_ptr<RayCastVisibility> rays;             // Visibility::RayCast only
     std::vector<char> reversed;                          // per direction
     std::vector<float> coefficient;                      // per direction: A / |s|
     std::vector<float> invZ;                             // per voxel: 1 / Z(n)
@@ -150,7 +152,7 @@ struct RadiositySolver::Engine
                     for (int g = r.begin(); g != r.end(); ++g) {
                         const size_t p = size_t(Impl::patternOf(g));
                         if (!inPhase(g) || impl.patterns[p].directions.empty()) continue;
-                        const LineSweep& sweep = *impl.patterns[p].sweep;
+                        const Impl::Pattern& pattern = impl.patterns[p];
                         const std::vector<ValueT>& Bp = ordered[p];
                         std::vector<AccT>& G = gathered[size_t(g)];
                         G.assign(n, openvdb::zeroVal<AccT>());
@@ -160,15 +162,25 @@ struct RadiositySolver::Engine
                         impl.forDirections(g, [&](size_t k) {
                             if (cancelled.load(std::memory_order_relaxed)) return;
                             const float c = impl.coefficient[k];
-                            sweep.sweep(s.mDirections.direction(k), impl.reversed[k] != 0, work,
-                                [&](uint32_t y) { return Bp[y]; },
-                                [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
-                                    if (seen) {
-                                        const float w = std::abs(sigmaDotN) * c;
-                                        G[x] += *seen * w;
-                                        if (H) (*H)[x] += w;
-                                    }
+                            // x (a position in the pattern's order) receives what it sees.
+                            auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
+                                if (seen) {
+                                    const float w = std::abs(sigmaDotN) * c;
+                                    G[x] += *seen * w;
+                                    if (H) (*H)[x] += w;
+                                }
+                            };
+                            const openvdb::Coord& sigma = s.mDirections.direction(k);
+                            if (impl.rays) {
+                                const std::vector<uint32_t>& at = pattern.position;
+                                impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
+                                    gather(at[x], y == RayCastVisibility::kNone ? nullptr
+                                        : &Bp[at[y]], dn);
                                 });
+                            } else {
+                                pattern.sweep->sweep(sigma, impl.reversed[k] != 0, work,
+                                    [&](uint32_t y) { return Bp[y]; }, gather);
+                            }
                             const size_t d = ++done;
                             if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
                                 cancelled = true;
@@ -309,7 +321,14 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         pattern.order = order.voxels();
         pattern.position.resize(n);
         for (size_t k = 0; k < n; ++k) pattern.position[pattern.order[k]] = uint32_t(k);
-        pattern.sweep.reset(new LineSweep(scene.voxels(), order, scene.normals(), options.lines,
+        if (options.visibility == Visibility::Sweep) {
+            pattern.sweep.reset(new LineSweep(scene.voxels(), order, scene.normals(),
+                options.lines, options.occlusionDepth,
+                impl.regions.cavities > 0 ? &impl.regions.region : nullptr));
+        }
+    }
+    if (options.visibility == Visibility::RayCast) {
+        impl.rays.reset(new RayCastVisibility(scene.voxels(), scene.normals(), options.lines,
             options.occlusionDepth, impl.regions.cavities > 0 ? &impl.regions.region : nullptr));
     }
 

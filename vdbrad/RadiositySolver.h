@@ -53,6 +53,16 @@ enum class UpdateScheme
     Progressive
 };
 
+/// How V(x, sigma), the voxel x sees along sigma, is found.
+enum class Visibility
+{
+    /// The line sweeps (LineSweep): O(N) per direction.
+    Sweep,
+    /// Marching each receiver's digital line through the tree (RayCastVisibility): the
+    /// reference, same lines and exchange rule, none of the sweep's code.
+    RayCast
+};
+
 struct RadiosityOptions
 {
     /// Number of direction pairs (one sweep serves s and -s); the nearest count a discrete
@@ -69,6 +79,8 @@ struct RadiosityOptions
     /// Jacobi, in-place or progressive-shooting updates (an in-place solve's first iteration is
     /// a Jacobi one).
     UpdateScheme update = UpdateScheme::InPlace;
+    /// Line sweeps, or the ray-casting reference.
+    Visibility visibility = Visibility::Sweep;
 };
 
 class RadiositySolver
