@@ -1,0 +1,153 @@
+// The speed/accuracy trade, measured against exact references; one CSV row per run.
+//
+//   build/benchmarks/bench_trade [out.csv]    (default: standard output)
+//
+// study "disk": the emitting disk under the albedo-1 receiver, whose irradiance is known at
+//   every receiver point (grids::diskIrradiance, Howell B-13); two iterations are exact for it
+//   (the disk does not reflect). Knobs: resolution x direction count x line type. Errors over
+//   the receiver voxels within 0.5 of the axis (irradiance >= ~0.1): the mean and the max of
+//   |B - exact| / exact, and the on-axis error of bench_accuracy.
+// study "iterations": the RGB Cornell box at res 48 with 300 directions, k iterations of each
+//   update scheme against a solve converged to 1e-7 with the same lines and directions (so only
+//   the iteration knob differs): mean |dB| / mean B and max |dB| / max B.
+// seconds: construction + solve, all cores. peak_mb: the process's peak resident set during the
+//   run (reset before it through /proc/self/clear_refs; the scene itself included).
+#include "grids/CanonicalGrids.h"
+#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/vdbrad.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+namespace {
+
+void
+resetPeakMemory()
+{
+    std::ofstream("/proc/self/clear_refs") << "5";
+}
+
+double
+peakMegabytes()
+{
+    std::ifstream in("/proc/self/status");
+    for (std::string line; std::getline(in, line);) {
+        if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+    }
+    return 0.0;
+}
+
+const char* name(vdbrad::LineType t) { return t == vdbrad::LineType::Naive ? "naive" : "standard"; }
+const char*
+name(vdbrad::UpdateScheme u)
+{
+    return u == vdbrad::UpdateScheme::Jacobi ? "jacobi"
+        : u == vdbrad::UpdateScheme::InPlace ? "inplace" : "progressive";
+}
+
+} // namespace
+
+int
+main(int argc, char** argv)
+{
+    openvdb::initialize();
+    FILE* out = argc > 1 ? std::fopen(argv[1], "w") : stdout;
+    if (!out) { std::perror(argv[1]); return 1; }
+    std::fprintf(out, "study,scene,res,voxels,directions,lines,update,iterations,seconds,peak_mb,"
+                      "axis_err,mean_err,max_err\n");
+
+    {
+        // Warm-up (thread pool, allocator), so that the first timed run is not an outlier.
+        vdbrad::grids::BuildParams p;
+        p.res = 32;
+        vdbrad::RadiositySolver(vdbrad::buildScene(vdbrad::grids::makeDisk(p))).solve();
+    }
+    for (int res : {32, 64, 128, 256}) {
+        vdbrad::grids::BuildParams p;
+        p.res = res;
+        const vdbrad::Scene scene = vdbrad::buildScene(vdbrad::grids::makeDisk(p));
+        const double vs = scene.voxelSize();
+        for (vdbrad::LineType lines : {vdbrad::LineType::Naive, vdbrad::LineType::Standard}) {
+            for (int dirs : {50, 100, 300, 1000, 3000, 10000, 20000}) {
+                vdbrad::RadiosityOptions o;
+                o.directions = dirs;
+                o.maxIterations = 2;
+                o.tolerance = 0.0;
+                o.lines = lines;
+                resetPeakMemory();
+                const auto t0 = std::chrono::steady_clock::now();
+                vdbrad::RadiositySolver solver(scene, o);
+                solver.solve();
+                const double secs = std::chrono::duration<double>(
+                    std::chrono::steady_clock::now() - t0).count();
+                const double peak = peakMegabytes();
+                double axisB = 0.0, axisExact = 0.0, sum = 0.0, worst = 0.0;
+                size_t count = 0;
+                for (size_t i = 0; i < scene.size(); ++i) {
+                    const openvdb::Coord c = scene.voxels().coord(i);
+                    if (c.y() == 0) continue;   // the disk
+                    const double x = (c.x() + 0.5) * vs - 0.5, z = (c.z() + 0.5) * vs - 0.5;
+                    const double a = std::sqrt(x * x + z * z);
+                    if (a > 0.5) continue;
+                    const double exact = vdbrad::grids::diskIrradiance(1.0, 0.25, c.y() * vs, a);
+                    const double err = std::abs(solver.grey()[i] - exact) / exact;
+                    sum += err;
+                    worst = std::max(worst, err);
+                    ++count;
+                    if (a <= vs) { axisB += solver.grey()[i]; axisExact += exact; }
+                }
+                std::fprintf(out, "disk,disk,%d,%zu,%zu,%s,jacobi,2,%.4f,%.1f,%.4g,%.4g,%.4g\n",
+                    res, scene.size(), solver.directions().size(), name(lines), secs, peak,
+                    std::abs(axisB - axisExact) / axisExact, sum / double(count), worst);
+                std::fflush(out);
+            }
+        }
+    }
+
+    vdbrad::grids::BuildParams p;
+    p.res = 48;
+    const vdbrad::Scene cornell = vdbrad::buildScene(vdbrad::grids::makeCornell(p));
+    vdbrad::RadiosityOptions ref;
+    ref.directions = 300;
+    ref.maxIterations = 5000;
+    ref.tolerance = 1e-7;
+    vdbrad::RadiositySolver converged(cornell, ref);
+    converged.solve();
+    const std::vector<openvdb::Vec3f>& B = converged.rgb();
+    for (vdbrad::UpdateScheme update : {vdbrad::UpdateScheme::Jacobi,
+             vdbrad::UpdateScheme::InPlace, vdbrad::UpdateScheme::Progressive}) {
+        for (int k : {1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64}) {
+            vdbrad::RadiosityOptions o = ref;
+            o.maxIterations = k;
+            o.tolerance = 0.0;
+            o.update = update;
+            resetPeakMemory();
+            const auto t0 = std::chrono::steady_clock::now();
+            vdbrad::RadiositySolver solver(cornell, o);
+            solver.solve();
+            const double secs = std::chrono::duration<double>(
+                std::chrono::steady_clock::now() - t0).count();
+            const double peak = peakMegabytes();
+            double diff = 0.0, total = 0.0, worst = 0.0, maxB = 0.0;
+            for (size_t i = 0; i < cornell.size(); ++i) {
+                for (int c = 0; c < 3; ++c) {
+                    const double d = std::abs(double(solver.rgb()[i][c]) - B[i][c]);
+                    diff += d;
+                    total += B[i][c];
+                    worst = std::max(worst, d);
+                    maxB = std::max(maxB, double(B[i][c]));
+                }
+            }
+            std::fprintf(out, "iterations,cornell,48,%zu,%zu,naive,%s,%d,%.4f,%.1f,,%.4g,%.4g\n",
+                cornell.size(), solver.directions().size(), name(update), k, secs, peak,
+                diff / total, worst / maxB);
+            std::fflush(out);
+        }
+    }
+    if (out != stdout) std::fclose(out);
+    return 0;
+}
