@@ -3,6 +3,7 @@
 #include "Progress.h"
 
 #include "grids/CanonicalGrids.h"
+#include "vdbrad/MonteCarloSolver.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
@@ -413,7 +414,16 @@ runSolve(const Arguments& a)
     const std::string method = a.getString("method");
     if (method == "sweep") o.visibility = Visibility::Sweep;
     else if (method == "raycast") o.visibility = Visibility::RayCast;
-    else throw UsageError("--method must be sweep or raycast, got '" + method + "'");
+    else if (method != "montecarlo") {
+        throw UsageError("--method must be sweep, raycast or montecarlo, got '" + method + "'");
+    }
+    MonteCarloOptions mc;
+    mc.samples = a.getInt("samples");
+    mc.maxIterations = o.maxIterations;
+    mc.tolerance = o.tolerance;
+    if (mc.samples < 1 || mc.samples > 1000000) {
+        throw UsageError("--samples must be in [1, 1000000], got " + a.getString("samples"));
+    }
     const std::string update = a.getString("update");
     if (update == "jacobi") o.update = UpdateScheme::Jacobi;
     else if (update == "inplace") o.update = UpdateScheme::InPlace;
@@ -447,6 +457,25 @@ runSolve(const Arguments& a)
     ProgressInterrupter progress(quiet);
     const Scene scene = forFile(label, [&] { return buildScene(file.grids, sceneOpts, &progress); });
     if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+    if (method == "montecarlo") {
+        if (!quiet) {
+            std::cerr << "Monte Carlo: " << withCommas(scene.size()) << " voxels, " << mc.samples
+                      << " rays each" << (scene.isRgb() ? ", RGB" : "") << "\n";
+        }
+        progress.start("casting rays");
+        MonteCarloSolver solver(scene, mc, &progress);
+        progress.end();
+        while (!solver.converged() && solver.iterationCount() < mc.maxIterations) {
+            const std::string step = "iteration " + std::to_string(solver.iterationCount() + 1);
+            progress.start(step.c_str());
+            std::ostringstream result;
+            result << "residual " << solver.iterate();
+            if (progress.wasInterrupted()) throw Cancelled("Monte Carlo solve");
+            progress.end(result.str());
+        }
+        writeOutput(withGrids(file, solver.grids()), out);
+        return 0;
+    }
     RadiositySolver solver(scene, o);
     if (!quiet) {
         std::cerr << "solving " << withCommas(scene.size()) << " voxels, "
@@ -546,8 +575,12 @@ commands()
                     "jacobi (thesis eq. 4.11) or progressive (shoots the unshot radiosity: "
                     "iteration k = k bounces)"},
                 {"method", OptionType::String, "sweep", "raycast",
-                    "sweep (the line sweeps) or raycast (the reference: marches every "
-                    "receiver's line through the tree; same lines and rule, far slower)"},
+                    "sweep (the line sweeps), raycast (reference: marches every receiver's line "
+                    "through the tree; same lines and rule, far slower) or montecarlo "
+                    "(reference: cosine-weighted continuous rays; also writes radiosity_stderr; "
+                    "ignores --directions, --lines, --update)"},
+                {"samples", OptionType::Int, "256", "4096",
+                    "rays per voxel for --method montecarlo"},
                 {"lines", OptionType::String, "naive", "standard",
                     "digital lines: naive (26-connected) or standard (6-connected)"},
                 {"occlusion-depth", OptionType::Float, "1", "1.5",

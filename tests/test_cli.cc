@@ -369,8 +369,31 @@ TEST_F(CliTest, RayCastMethodGivesTheSweepsRadiosity)
     EXPECT_LE(worst, 1e-5f * maxB);
     r = sh("vdbrad solve c.vdb x.vdb --method rays");
     EXPECT_EQ(r.status, 2);
-    EXPECT_NE(r.err.find("--method must be sweep or raycast"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("--method must be sweep, raycast or montecarlo"), std::string::npos) << r.err;
     EXPECT_FALSE(exists(path("x.vdb")));
+}
+
+TEST_F(CliTest, MonteCarloMethodWritesRadiosityAndItsStandardError)
+{
+    // Closed furnace: every ray sees E / (1 - rho) = 2, so both the value (1e-4 relative) and a
+    // zero standard error are exact.
+    const Result r = sh("vdbrad make furnace-box - --res 10 --albedo 0.5 --quiet | "
+                        "vdbrad solve - mc.vdb --method montecarlo --samples 64 --tolerance 1e-7 "
+                        "--quiet");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const VdbFile out = readVdbFile(path("mc.vdb"));
+    auto b = openvdb::GridBase::constGrid<openvdb::FloatGrid>(findGrid(out.grids, "radiosity"));
+    auto e = openvdb::GridBase::constGrid<openvdb::FloatGrid>(
+        findGrid(out.grids, "radiosity_stderr"));
+    ASSERT_TRUE(b && e);
+    EXPECT_EQ(b->activeVoxelCount(), e->activeVoxelCount());
+    for (auto it = b->cbeginValueOn(); it; ++it) ASSERT_NEAR(*it, 2.f, 2e-4f);
+    for (auto it = e->cbeginValueOn(); it; ++it) ASSERT_LT(*it, 2e-4f);
+    EXPECT_EQ(b->metaValue<std::string>("vdbrad:lines"), "montecarlo");
+    EXPECT_EQ(b->metaValue<int32_t>("vdbrad:directions"), 64);
+    const Result bad = sh("vdbrad solve mc.vdb x.vdb --method montecarlo --samples 0");
+    EXPECT_EQ(bad.status, 2);
+    EXPECT_NE(bad.err.find("--samples must be in [1, 1000000]"), std::string::npos) << bad.err;
 }
 
 TEST_F(CliTest, InterruptedSolveExitsCleanlyWithoutOutput)

@@ -1,0 +1,267 @@
+#include "vdbrad/MonteCarloSolver.h"
+
+#include "vdbrad/Enclosure.h"
+#include "vdbrad/Errors.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <type_traits>
+
+namespace vdbrad {
+
+namespace {
+
+using Accessor = openvdb::tree::ValueAccessor<const VoxelIndex::IndexTree>;
+
+uint64_t
+mix(uint64_t z)   // splitmix64's finaliser: a counter-based hash, so no RNG state is shared
+{
+    z += 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+double unit(uint64_t h) { return double(h >> 11) * 0x1.0p-53; }   // [0, 1)
+
+// Side of the empty node holding @a c (tile or missing child), 1 if c is in a leaf.
+int64_t
+emptyNodeSize(Accessor& acc, const openvdb::Coord& c)
+{
+    const int depth = acc.getValueDepth(c);
+    return depth <= 0 ? 4096 : depth == 1 ? 128 : depth == 2 ? 8 : 1;
+}
+
+// What the ray from the centre of voxel @a self along unit @a d hits (see the header).
+uint32_t
+trace(const Scene& scene, Accessor& acc, const openvdb::CoordBBox& box, uint32_t self,
+    const openvdb::Vec3d& d)
+{
+    using openvdb::Vec3d;
+    const Vec3d o = scene.voxels().coord(self).asVec3d();
+    // Shifted coordinates: cell k spans [k, k + 1).
+    const Vec3d q0 = o + Vec3d(0.5);
+    auto exitOf = [&](const Vec3d& lo, const Vec3d& hi) {
+        double t = std::numeric_limits<double>::infinity();
+        for (int k = 0; k < 3; ++k) {
+            if (d[k] > 0.0) t = std::min(t, (hi[k] - q0[k]) / d[k]);
+            else if (d[k] < 0.0) t = std::min(t, (lo[k] - q0[k]) / d[k]);
+        }
+        return t;
+    };
+    const double tEnd = exitOf(box.min().asVec3d(), (box.max() + openvdb::Coord(1)).asVec3d());
+    double t = 0.0;
+    while (t < tEnd) {
+        // A nudge past the face just crossed picks the cell being entered.
+        const Vec3d q = q0 + d * (t + 1e-9);
+        const openvdb::Coord cell(int32_t(std::floor(q[0])), int32_t(std::floor(q[1])),
+            int32_t(std::floor(q[2])));
+        const int32_t index = acc.getValue(cell);
+        const int64_t size = index >= 0 ? 1 : emptyNodeSize(acc, cell);
+        Vec3d lo = cell.asVec3d();
+        if (size > 1) {
+            for (int k = 0; k < 3; ++k) lo[k] = double(int64_t(cell[k]) & ~(size - 1));
+        }
+        const double tExit = exitOf(lo, lo + Vec3d(double(size)));
+        if (index >= 0 && uint32_t(index) != self) {
+            const Vec3d n(scene.normal(size_t(index)));
+            const Vec3d c = cell.asVec3d();
+            const double s0 = (o + d * t - c).dot(n), s1 = (o + d * tExit - c).dot(n);
+            if (std::min(s0, s1) < 0.0) {
+                return d.dot(n) < 0.0 ? uint32_t(index) : MonteCarloSolver::kBack;
+            }
+        }
+        t = std::max(tExit, t + 1e-9);
+    }
+    return MonteCarloSolver::kSky;
+}
+
+template<typename ValueT> ValueT value(const Attribute& a, size_t i);
+template<> float value<float>(const Attribute& a, size_t i) { return a.grey(i); }
+template<> openvdb::Vec3f value<openvdb::Vec3f>(const Attribute& a, size_t i) { return a.rgb(i); }
+
+inline float component(float v, int) { return v; }
+inline float component(const openvdb::Vec3f& v, int c) { return v[c]; }
+inline void setComponent(float& v, int, float x) { v = x; }
+inline void setComponent(openvdb::Vec3f& v, int c, float x) { v[c] = x; }
+
+} // namespace
+
+MonteCarloSolver::MonteCarloSolver(const Scene& scene, const MonteCarloOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+    : mScene(scene), mOptions(options)
+{
+    if (options.samples < 1) {
+        OPENVDB_THROW(openvdb::ValueError, "samples must be >= 1, got " << options.samples);
+    }
+    if (options.maxIterations < 1) {
+        OPENVDB_THROW(openvdb::ValueError, "iterations must be >= 1, got "
+            << options.maxIterations);
+    }
+    if (!(options.tolerance >= 0.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "tolerance must be >= 0, got " << options.tolerance);
+    }
+    const size_t n = scene.size(), S = size_t(options.samples);
+    mHits.resize(n * S);
+    const openvdb::CoordBBox box = scene.voxels().bbox();
+    std::atomic<size_t> done{0};
+    std::atomic<bool> cancelled{false};
+    const auto t0 = std::chrono::steady_clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 64), [&](const tbb::blocked_range<size_t>& r) {
+        if (cancelled) return;
+        Accessor acc(scene.voxels().tree());
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const openvdb::Vec3d nrm(scene.normal(i));
+            // An orthonormal frame about the normal.
+            const openvdb::Vec3d axis = std::abs(nrm[0]) < 0.6 ? openvdb::Vec3d(1, 0, 0)
+                : openvdb::Vec3d(0, 1, 0);
+            const openvdb::Vec3d t1 = nrm.cross(axis).unitSafe(), t2 = nrm.cross(t1);
+            const uint64_t h = mix(options.seed ^ mix(uint64_t(i)));
+            const double phase = unit(h);
+            for (size_t s = 0; s < S; ++s) {
+                // Stratified in sin^2(theta) (equal-flux bands of a cosine lobe).
+                const double u = (double(s) + unit(mix(h + 2 * s + 1))) / double(S);
+                const double v = std::fmod(phase + 0.6180339887498949 * double(s), 1.0);
+                const double sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
+                const double phi = 6.283185307179586 * v;   // 2 pi v
+                const openvdb::Vec3d d = t1 * (sinT * std::cos(phi)) + t2 * (sinT * std::sin(phi))
+                    + nrm * cosT;
+                mHits[i * S + s] = trace(scene, acc, box, uint32_t(i), d.unitSafe());
+            }
+        }
+        const size_t d = done += r.size();
+        if (interrupt && interrupt->wasInterrupted(int(100 * d / std::max<size_t>(n, 1)))) {
+            cancelled = true;
+        }
+    });
+    if (cancelled) throw Cancelled("Monte Carlo rays");
+
+    // A voxel facing a closed cavity averages over the rays that hit a voxel: a ray leaving
+    // the room through the voxel's own cube (a corner patch tilted across the wall) is a
+    // digitisation artefact, not sky. The line-partition solver renormalises the same way.
+    const Regions regions = findRegions(scene.voxels(), scene.normals(), LineType::Naive);
+    mClosed.assign(n, 0);
+    for (size_t i = 0; i < n; ++i) mClosed[i] = regions.region[i] != 0 ? 1 : 0;
+    mSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+    if (scene.isRgb()) {
+        mRgb.resize(n);
+        mRgbError.assign(n, openvdb::Vec3f(0.f));
+        for (size_t i = 0; i < n; ++i) mRgb[i] = scene.emission().rgb(i);
+    } else {
+        mGrey.resize(n);
+        mGreyError.assign(n, 0.f);
+        for (size_t i = 0; i < n; ++i) mGrey[i] = scene.emission().grey(i);
+    }
+}
+
+template<typename ValueT>
+double
+MonteCarloSolver::iterate(std::vector<ValueT>& B, std::vector<ValueT>& err)
+{
+    const size_t n = mScene.size(), S = size_t(mOptions.samples);
+    constexpr int channels = std::is_same<ValueT, float>::value ? 1 : 3;
+    std::vector<ValueT> next(n);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const ValueT e = value<ValueT>(mScene.emission(), i);
+            const ValueT rho = value<ValueT>(mScene.albedo(), i);
+            ValueT out = e, sd = e;
+            for (int c = 0; c < channels; ++c) {
+                // Sums in double: S can be large and the values spread. The variance of the
+                // mean is estimated by collapsing the u-strata in pairs (one ray per stratum):
+                // (1 / S^2) sum over pairs (v_2k - v_2k+1)^2, a conservative estimate.
+                double sum = 0.0, pairs = 0.0, previous = 0.0;
+                size_t used = 0;
+                for (size_t s = 0; s < S; ++s) {
+                    const uint32_t y = mHits[i * S + s];
+                    if (y == kSky && mClosed[i]) continue;
+                    const double b = y < kBack ? double(component(B[y], c)) : 0.0;
+                    sum += b;
+                    if (used % 2 == 1) pairs += (b - previous) * (b - previous);
+                    previous = b;
+                    ++used;
+                }
+                const double mean = used > 0 ? sum / double(used) : 0.0;
+                const double var = used > 1 ? pairs / double(used / 2 * 2) / double(used) : 0.0;
+                const double p = component(rho, c);
+                setComponent(out, c, float(component(e, c) + p * mean));
+                setComponent(sd, c, float(p * std::sqrt(var)));
+            }
+            next[i] = out;
+            err[i] = sd;
+        }
+    });
+    double maxChange = 0.0, maxSize = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        for (int c = 0; c < channels; ++c) {
+            maxChange = std::max(maxChange,
+                std::abs(double(component(next[i], c)) - double(component(B[i], c))));
+            maxSize = std::max(maxSize, std::abs(double(component(next[i], c))));
+        }
+    }
+    B.swap(next);
+    return maxSize > 0.0 ? maxChange / maxSize : 0.0;
+}
+
+double
+MonteCarloSolver::iterate()
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    const double r = mScene.isRgb() ? iterate(mRgb, mRgbError) : iterate(mGrey, mGreyError);
+    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    mResiduals.push_back(r);
+    return r;
+}
+
+bool
+MonteCarloSolver::converged() const
+{
+    return !mResiduals.empty() && mResiduals.back() <= mOptions.tolerance;
+}
+
+void
+MonteCarloSolver::solve(openvdb::util::NullInterrupter* interrupt)
+{
+    while (!converged() && iterationCount() < mOptions.maxIterations) {
+        if (interrupt && interrupt->wasInterrupted()) throw Cancelled("Monte Carlo solve");
+        iterate();
+    }
+}
+
+openvdb::GridPtrVec
+MonteCarloSolver::grids() const
+{
+    SolveStats stats;
+    stats.directions = mOptions.samples;
+    stats.iterations = iterationCount();
+    stats.residual = mResiduals.empty() ? 0.0 : mResiduals.back();
+    stats.seconds = mSeconds;
+    stats.lines = "montecarlo";
+    const std::string name = "radiosity_stderr";
+    if (mScene.isRgb()) {
+        return {makeRadiosityGrid(mScene, mRgb, stats),
+            arrayToGrid(mScene.voxels(), mRgbError, mScene.transform(), name)};
+    }
+    return {makeRadiosityGrid(mScene, mGrey, stats),
+        arrayToGrid(mScene.voxels(), mGreyError, mScene.transform(), name)};
+}
+
+openvdb::GridPtrVec
+solveMonteCarlo(const Scene& scene, const MonteCarloOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    if (interrupt) interrupt->start("Monte Carlo radiosity");
+    MonteCarloSolver solver(scene, options, interrupt);
+    solver.solve(interrupt);
+    if (interrupt) interrupt->end();
+    return solver.grids();
+}
+
+} // namespace vdbrad

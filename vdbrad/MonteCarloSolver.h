@@ -1,0 +1,99 @@
+// MonteCarloSolver: radiosity of the voxelised scene by cosine-weighted continuous rays, with a
+// per-voxel standard error. The reference for the direction set's angular error: it shares
+// neither directions nor digital lines with the line-partition solver.
+//
+// The voxelised surface: voxel v is the plane through its centre c_v with normal n_v, clipped to
+// its cube. A ray that crosses that plane inside the cube, or runs behind it there (it slipped
+// through a digitisation crack between two tilted patches), hits v: v's front (d . n_v < 0)
+// shows B(v), its back is black. A ray that crosses a surface voxel's cube in front of its
+// plane passes (the neighbours of a flat wall, at grazing angles). A 26-connected shell stops
+// every ray this way: rays traverse cubes 6-connectedly. Leaving the scene's box is the sky (0).
+//
+// Estimator: S rays per voxel from its centre, cosine-distributed about n_x (stratified in
+// cos^2 theta, golden-ratio sequence in phi, per-voxel random offsets from a counter-based hash,
+// so results do not depend on the thread count). Their hits are found once; then Jacobi
+// iterations B(x) = E(x) + rho(x) (1/S) sum_s B(hit_s) until the relative residual is below the
+// tolerance. For fixed rays this is the radiosity of the sampled scene; as S grows it converges
+// to the voxelised scene's radiosity. A voxel facing a closed cavity (Enclosure.h) averages over
+// its rays that hit a voxel (one leaving through its own cube is a digitisation artefact), as
+// the line-partition solver renormalises. The standard error reported per voxel is that of its
+// last gather: rho times the sampling error of the mean of its own rays, estimated by pairing
+// adjacent strata (conservative; the error its neighbours' values carry in is not included).
+//
+// Empty space: the traversal jumps over empty tree nodes (tiles and missing children of the
+// index tree) to where the ray leaves them. Memory: S hit indices per voxel (4 S bytes).
+#pragma once
+
+#include "vdbrad/OutputGrids.h"
+#include "vdbrad/Scene.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/util/NullInterrupter.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace vdbrad {
+
+struct MonteCarloOptions
+{
+    /// Rays per voxel, >= 1.
+    int samples = 256;
+    /// Iteration cap, >= 1.
+    int maxIterations = 200;
+    /// Stop when max|B' - B| / max|B'| falls below this, >= 0.
+    double tolerance = 1e-5;
+    /// Seed of the per-voxel ray sequences.
+    uint64_t seed = 1;
+};
+
+class MonteCarloSolver
+{
+public:
+    static constexpr uint32_t kSky = 0xffffffffu;   ///< a ray that leaves the scene
+    static constexpr uint32_t kBack = 0xfffffffeu;  ///< a ray that hits a voxel's back
+
+    /// @brief Cast every voxel's rays. @throw openvdb::ValueError for invalid options;
+    /// vdbrad::Cancelled if @a interrupt asks to stop.
+    MonteCarloSolver(const Scene& scene, const MonteCarloOptions& options = MonteCarloOptions(),
+        openvdb::util::NullInterrupter* interrupt = nullptr);
+
+    /// One Jacobi iteration; returns the relative residual.
+    double iterate();
+    /// Iterate until the tolerance or the cap. @throw vdbrad::Cancelled if interrupted.
+    void solve(openvdb::util::NullInterrupter* interrupt = nullptr);
+    bool converged() const;
+    int iterationCount() const { return int(mResiduals.size()); }
+
+    /// What ray @a s of voxel @a i hit: a voxel index, kSky or kBack.
+    uint32_t hit(size_t i, int s) const { return mHits[i * size_t(mOptions.samples) + size_t(s)]; }
+
+    const std::vector<float>& grey() const { return mGrey; }
+    const std::vector<openvdb::Vec3f>& rgb() const { return mRgb; }
+    /// Standard error of each voxel's radiosity (per channel for RGB scenes).
+    const std::vector<float>& greyError() const { return mGreyError; }
+    const std::vector<openvdb::Vec3f>& rgbError() const { return mRgbError; }
+
+    /// `radiosity` (with metadata; vdbrad:directions holds the samples per voxel and
+    /// vdbrad:lines "montecarlo") and `radiosity_stderr`.
+    openvdb::GridPtrVec grids() const;
+
+private:
+    template<typename ValueT> double iterate(std::vector<ValueT>& B, std::vector<ValueT>& err);
+
+    const Scene& mScene;
+    MonteCarloOptions mOptions;
+    std::vector<uint32_t> mHits;
+    std::vector<char> mClosed;   // per voxel: faces a closed cavity (Enclosure.h)
+    std::vector<float> mGrey, mGreyError;
+    std::vector<openvdb::Vec3f> mRgb, mRgbError;
+    std::vector<double> mResiduals;
+    double mSeconds = 0.0;
+};
+
+/// @brief Solve @a scene by Monte Carlo: returns the `radiosity` and `radiosity_stderr` grids.
+openvdb::GridPtrVec solveMonteCarlo(const Scene& scene,
+    const MonteCarloOptions& options = MonteCarloOptions(),
+    openvdb::util::NullInterrupter* interrupt = nullptr);
+
+} // namespace vdbrad
