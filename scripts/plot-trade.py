@@ -67,6 +67,27 @@ for a in ax:
 fig.tight_layout()
 fig.savefig(os.path.join(outdir, "trade-disk-error-vs-knobs.png"), dpi=110)
 
+# Cornell box against the Monte Carlo reference: error vs time per (resolution, lines).
+cornell = [r for r in rows if r["study"] == "cornell"]
+if cornell:
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    curves = defaultdict(list)
+    for r in cornell:
+        curves[(int(r["res"]), r["lines"])].append(r)
+    for (res, lines), rs in sorted(curves.items()):
+        rs.sort(key=lambda r: int(r["directions"]))
+        ax.loglog([float(r["seconds"]) for r in rs], [float(r["mean_err"]) for r in rs],
+                  "-o" if lines == "naive" else "--s", label=f"res {res}, {lines}", markersize=4)
+        floor = float(rs[0]["axis_err"])
+        ax.axhline(floor, color=ax.lines[-1].get_color(), linewidth=0.6, alpha=0.5)
+    ax.set_xlabel("seconds (2 cores, to tolerance 1e-5)")
+    ax.set_ylabel("mean |B - B_MC| / mean B")
+    ax.set_title("Cornell box vs Monte Carlo (thin lines: MC noise floor)", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(outdir, "trade-cornell-error-vs-time.png"), dpi=110)
+
 # Iterations: error vs iterations per update scheme.
 fig, ax = plt.subplots(figsize=(6.5, 4.5))
 schemes = defaultdict(list)

@@ -1,6 +1,7 @@
 // MonteCarloSolver against exact references: a closed furnace (every ray hits a front face, so
 // the answer is exact for any sample count), the disk's irradiance field within the reported
 // standard error, thread-count independence, and the line-partition solver's angular error.
+#include "CanonicalScene.h"
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/MonteCarloSolver.h"
 #include "vdbrad/RadiositySolver.h"
@@ -24,15 +25,7 @@ protected:
     static void SetUpTestSuite() { openvdb::initialize(); }
 };
 
-Scene
-make(const std::string& name, int res, float albedo = -1.f, float emission = -1.f)
-{
-    grids::BuildParams p;
-    p.res = res;
-    p.albedo = albedo;
-    p.emission = emission;
-    return buildScene(grids::findBuilder(name)->build(p));
-}
+using test::canonicalScene;
 
 } // namespace
 
@@ -43,7 +36,7 @@ TEST_F(MonteCarloTest, ClosedFurnaceIsExactAndEveryRayHitsAFront)
     // rays to reach the sky are those that leave through their own voxel's cube (corner and
     // edge patches tilted across the wall), which closed-cavity voxels do not count.
     for (float rho : {0.f, 0.5f, 0.9f}) {
-        const Scene scene = make("furnace-box", 12, rho, 2.f);
+        const Scene scene = canonicalScene("furnace-box", 12, rho, 2.f);
         MonteCarloOptions o;
         o.samples = 64;
         o.maxIterations = 1000;
@@ -73,7 +66,7 @@ TEST_F(MonteCarloTest, DiskIrradianceWithinTheReportedError)
     // the receiver voxels within 0.3 of the axis: |B - exact| <= 4 stderr + the disk's
     // digitisation (its voxel area differs from pi r^2: 1.5%), and the mean normalised error
     // is near 1 (an honest standard error).
-    const Scene scene = make("disk", 64);
+    const Scene scene = canonicalScene("disk", 64);
     MonteCarloOptions o;
     o.samples = 1024;
     o.maxIterations = 2;   // the disk does not reflect: two iterations are exact
@@ -109,7 +102,7 @@ TEST_F(MonteCarloTest, DiskIrradianceWithinTheReportedError)
 
 TEST_F(MonteCarloTest, SameBitsForAnyThreadCount)
 {
-    const Scene scene = make("cornell", 20);
+    const Scene scene = canonicalScene("cornell", 20);
     MonteCarloOptions o;
     o.samples = 32;
     o.maxIterations = 5;
@@ -130,7 +123,7 @@ TEST_F(MonteCarloTest, SweepsConvergeTowardsMonteCarloWithDirections)
     // digital lines' and the Monte Carlo noise: rays rarely find the small light, so the mean
     // stderr is ~5% of B here), so it must shrink from 111 to 967 directions (measured 17% ->
     // 6.2%) and end within 8%.
-    const Scene scene = make("cornell", 32);
+    const Scene scene = canonicalScene("cornell", 32);
     MonteCarloOptions mo;
     mo.samples = 2048;
     mo.tolerance = 1e-6;

@@ -1,5 +1,6 @@
 // RadiositySolver against exact references: closed furnaces, the disk's on-axis irradiance,
 // light-tightness of closed walls, mirror symmetry, and bit-identical results for any thread count.
+#include "CanonicalScene.h"
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/RadiositySolver.h"
@@ -27,15 +28,7 @@ protected:
     static void SetUpTestSuite() { openvdb::initialize(); }
 };
 
-Scene
-make(const std::string& name, int res, float albedo = -1.f, float emission = -1.f)
-{
-    grids::BuildParams p;
-    p.res = res;
-    p.albedo = albedo;
-    p.emission = emission;
-    return buildScene(grids::findBuilder(name)->build(p));
-}
+using test::canonicalScene;
 
 // Explicit surface grids (normal, emission, albedo) that boxShell() adds voxels to.
 openvdb::GridPtrVec
@@ -85,7 +78,7 @@ TEST_F(RadiosityTest, FurnacesAreExactForEveryAlbedo)
     // of a closed furnace). 1e-4 relative is the tolerance.
     for (const char* name : {"furnace-box", "furnace-sphere"}) {
         for (float rho : {0.f, 0.5f, 0.9f, 0.99f}) {
-            const Scene scene = make(name, 12, rho, 2.f);
+            const Scene scene = canonicalScene(name, 12, rho, 2.f);
             for (UpdateScheme update :
                 {UpdateScheme::Jacobi, UpdateScheme::InPlace, UpdateScheme::Progressive}) {
                 RadiosityOptions o;
@@ -113,7 +106,7 @@ TEST_F(RadiosityTest, ProgressiveShootingFollowsTheJacobiIterates)
     // Shooting the unshot radiosity sums the Neumann series term by term: iterate k equals
     // Jacobi's iterate k (E + rho G E + ... + (rho G)^k E) up to float rounding (1e-5 relative
     // to max B), and its residual is the last bounce's share. RGB Cornell box, 4 iterations.
-    const Scene scene = make("cornell", 32);
+    const Scene scene = canonicalScene("cornell", 32);
     RadiosityOptions o;
     o.directions = 100;
     o.tolerance = 0.0;
@@ -142,7 +135,7 @@ TEST_F(RadiosityTest, DiskOnAxisIrradianceConvergesWithDirections)
     // Receiver (albedo 1) over an emitting disk (E = 1, r = h = 0.25): its radiosity equals its
     // irradiance E r^2 / (r^2 + h^2) = 0.5 on the axis (Howell B-13). Mean of the four voxels
     // around the axis at res 64.
-    const Scene scene = make("disk", 64);
+    const Scene scene = canonicalScene("disk", 64);
     const double vs = scene.voxelSize();
     double previous = 1.0;
     for (int dirs : {100, 1000}) {
@@ -213,7 +206,7 @@ TEST_F(RadiosityTest, ClosedBoxLeaksNoLight)
 
 TEST_F(RadiosityTest, ResultIsBitIdenticalForAnyThreadCount)
 {
-    const Scene scene = make("cornell", 24);
+    const Scene scene = canonicalScene("cornell", 24);
     RadiosityOptions o;
     o.directions = 60;
     o.maxIterations = 3;
@@ -316,7 +309,7 @@ TEST_F(RadiosityTest, StreamingSweepAndExplicitLineListsAgree)
     // bookkeeping. Payload = the seen voxel's position. For standard lines the lists are sorted
     // by the exact position along the line, so the streaming pass must repair every bubble
     // (LineSweep::assignLines) to agree; the test also checks that bubbles occurred.
-    const Scene scene = make("cornell", 40);
+    const Scene scene = canonicalScene("cornell", 40);
     const DirectionSet set = DirectionSet::fromCount(100);
     for (LineType type : {LineType::Naive, LineType::Standard}) {
         size_t reports = 0, bubbles = 0;
@@ -370,10 +363,10 @@ TEST_F(RadiosityTest, RayCastingReferenceAgreesWithTheSweeps)
     boxShell(far, 0, 9, false, 0.f, 0.8f);
     struct Case { const char* name; Scene scene; };
     std::vector<Case> cases;
-    cases.push_back({"cornell", make("cornell", 24)});
-    cases.push_back({"furnace-sphere", make("furnace-sphere", 12)});
-    cases.push_back({"plates", make("plates", 24)});
-    cases.push_back({"disk", make("disk", 24)});
+    cases.push_back({"cornell", canonicalScene("cornell", 24)});
+    cases.push_back({"furnace-sphere", canonicalScene("furnace-sphere", 12)});
+    cases.push_back({"plates", canonicalScene("plates", 24)});
+    cases.push_back({"disk", canonicalScene("disk", 24)});
     cases.push_back({"far cubes", buildScene(far)});
     for (const Case& c : cases) {
         const Scene& scene = c.scene;
