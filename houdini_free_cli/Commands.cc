@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <sstream>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -399,6 +400,65 @@ runSurface(const Arguments& a)
     return 0;
 }
 
+// ---- compare ---------------------------------------------------------------------------------
+
+// The `radiosity` grid of a file as per-voxel channel values (1 or 3 per voxel), by coordinate.
+std::map<openvdb::Coord, openvdb::Vec3d>
+radiosityValues(const VdbFile& file, const std::string& label, int& channels)
+{
+    const openvdb::GridBase::ConstPtr grid = findGrid(file.grids, names::kRadiosity);
+    if (!grid) throw UserError(label + ": no grid named 'radiosity' (solve it first)");
+    std::map<openvdb::Coord, openvdb::Vec3d> values;
+    if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) {
+        channels = 1;
+        for (auto it = f->cbeginValueOn(); it; ++it) values[it.getCoord()] = openvdb::Vec3d(*it, 0, 0);
+    } else if (auto v = openvdb::GridBase::constGrid<openvdb::Vec3SGrid>(grid)) {
+        channels = 3;
+        for (auto it = v->cbeginValueOn(); it; ++it) values[it.getCoord()] = openvdb::Vec3d(*it);
+    } else {
+        throw UserError(label + ": grid 'radiosity' is " + grid->valueType()
+            + ", expected float or vec3s");
+    }
+    return values;
+}
+
+int
+runCompare(const Arguments& a)
+{
+    const std::string pathA = a.positional()[0], pathB = a.positional()[1];
+    const std::string labelA = inputLabel(pathA), labelB = inputLabel(pathB);
+    int channelsA = 0, channelsB = 0;
+    const auto A = radiosityValues(readInput(pathA), labelA, channelsA);
+    const auto B = radiosityValues(readInput(pathB), labelB, channelsB);
+    if (channelsA != channelsB) {
+        throw UserError(labelA + " and " + labelB + ": one radiosity is grey, the other RGB");
+    }
+    if (A.size() != B.size()) {
+        throw UserError(labelA + " and " + labelB + ": radiosity on " + withCommas(A.size())
+            + " and " + withCommas(B.size()) + " voxels: not the same scene");
+    }
+    // B is the reference: mean |A - B| / mean |B| and max |A - B| / max |B| over voxels and
+    // channels, the figures of BENCHMARKS.md's trade study.
+    double diff = 0.0, total = 0.0, worst = 0.0, largest = 0.0;
+    for (const auto& [xyz, b] : B) {
+        const auto it = A.find(xyz);
+        if (it == A.end()) {
+            throw UserError(labelA + " and " + labelB + ": radiosity voxels differ (e.g. "
+                + formatCoord(xyz) + "): not the same scene");
+        }
+        for (int c = 0; c < channelsB; ++c) {
+            const double d = std::abs(it->second[c] - b[c]);
+            diff += d;
+            total += std::abs(b[c]);
+            worst = std::max(worst, d);
+            largest = std::max(largest, std::abs(b[c]));
+        }
+    }
+    std::cout << "voxels " << B.size() << " mean_rel " << (total > 0.0 ? diff / total : 0.0)
+              << " max_rel " << (largest > 0.0 ? worst / largest : 0.0) << "\n";
+    return 0;
+}
+
 // ---- solve -----------------------------------------------------------------------------------
 
 int
@@ -561,6 +621,13 @@ commands()
             {"vdb_tool -read bunny.obj -mesh2ls -write bunny_ls.vdb && "
              "vdbrad surface bunny_ls.vdb bunny_surface.vdb"},
             runSurface},
+        {"compare", "A B", 2, 2,
+            "compare the radiosity of A with that of the reference B (same voxels): prints "
+            "mean |A-B| / mean |B| and max |A-B| / max |B|",
+            {},
+            {"vdbrad solve box.vdb ref.vdb --method montecarlo --samples 4096 && "
+             "vdbrad solve box.vdb fast.vdb --directions 300 && vdbrad compare fast.vdb ref.vdb"},
+            runCompare},
         {"solve", "IN OUT", 2, 2,
             "solve the radiosity of a surface scene; writes the input's grids plus `radiosity`",
             concat(sceneOptionSpecs(), {

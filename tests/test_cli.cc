@@ -396,6 +396,38 @@ TEST_F(CliTest, MonteCarloMethodWritesRadiosityAndItsStandardError)
     EXPECT_NE(bad.err.find("--samples must be in [1, 1000000]"), std::string::npos) << bad.err;
 }
 
+TEST_F(CliTest, CompareMeasuresTheDifferenceToAReference)
+{
+    // A solve compared with itself differs by exactly 0. A furnace with E = 2, rho = 0.5 holds
+    // B = E + rho E = 3 after one iteration and E / (1 - rho) = 4 converged: 1/4 in mean and
+    // max. A grey and an RGB solve are refused with one error line.
+    Result r = sh("vdbrad make furnace-box f.vdb --res 10 --albedo 0.5 --emission 2 --quiet && "
+                  "vdbrad solve f.vdb ref.vdb --directions 50 --tolerance 1e-7 --quiet && "
+                  "vdbrad solve f.vdb one.vdb --directions 50 --iterations 1 --quiet && "
+                  "vdbrad compare ref.vdb ref.vdb && vdbrad compare one.vdb ref.vdb");
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::istringstream lines(r.out);
+    std::string word;
+    double same = -1.0, sameMax = -1.0, mean = -1.0, max = -1.0;
+    size_t voxels = 0;
+    lines >> word >> voxels >> word >> same >> word >> sameMax >> word >> voxels >> word >> mean
+        >> word >> max;
+    EXPECT_EQ(voxels, 488u);
+    EXPECT_EQ(same, 0.0);
+    EXPECT_EQ(sameMax, 0.0);
+    EXPECT_NEAR(mean, 0.25, 1e-5);
+    EXPECT_NEAR(max, 0.25, 1e-5);
+    r = sh("vdbrad make cornell c.vdb --res 12 --quiet && "
+           "vdbrad solve c.vdb c_out.vdb --directions 50 --iterations 1 --quiet && "
+           "vdbrad compare c_out.vdb ref.vdb");
+    EXPECT_EQ(r.status, 1);
+    ASSERT_EQ(r.errLines().size(), 1u) << r.err;
+    EXPECT_NE(r.err.find("one radiosity is grey, the other RGB"), std::string::npos) << r.err;
+    r = sh("vdbrad compare f.vdb ref.vdb");
+    EXPECT_EQ(r.status, 1);
+    EXPECT_NE(r.err.find("no grid named 'radiosity'"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, InterruptedSolveExitsCleanlyWithoutOutput)
 {
     const Result made = sh("vdbrad make cornell big.vdb --res 96 --quiet");
