@@ -461,6 +461,21 @@ runCompare(const Arguments& a)
 
 // ---- solve -----------------------------------------------------------------------------------
 
+// Iterate @a solver (RadiositySolver or MonteCarloSolver) to its tolerance or @a maxIterations,
+// one progress step per iteration reporting its residual.
+template<typename SolverT>
+void
+iterateWithProgress(SolverT& solver, int maxIterations, ProgressInterrupter& progress)
+{
+    while (!solver.converged() && solver.iterationCount() < maxIterations) {
+        const std::string step = "iteration " + std::to_string(solver.iterationCount() + 1);
+        progress.start(step.c_str());
+        std::ostringstream result;
+        result << "residual " << solver.iterate(&progress);
+        progress.end(result.str());
+    }
+}
+
 int
 runSolve(const Arguments& a)
 {
@@ -525,14 +540,7 @@ runSolve(const Arguments& a)
         progress.start("casting rays");
         MonteCarloSolver solver(scene, mc, &progress);
         progress.end();
-        while (!solver.converged() && solver.iterationCount() < mc.maxIterations) {
-            const std::string step = "iteration " + std::to_string(solver.iterationCount() + 1);
-            progress.start(step.c_str());
-            std::ostringstream result;
-            result << "residual " << solver.iterate();
-            if (progress.wasInterrupted()) throw Cancelled("Monte Carlo solve");
-            progress.end(result.str());
-        }
+        iterateWithProgress(solver, mc.maxIterations, progress);
         writeOutput(withGrids(file, solver.grids()), out);
         return 0;
     }
@@ -542,13 +550,7 @@ runSolve(const Arguments& a)
                   << solver.directions().size() << " directions (nearest to " << o.directions
                   << "), " << lines << " lines" << (scene.isRgb() ? ", RGB" : "") << "\n";
     }
-    while (!solver.converged() && solver.iterationCount() < o.maxIterations) {
-        const std::string step = "iteration " + std::to_string(solver.iterationCount() + 1);
-        progress.start(step.c_str());
-        std::ostringstream result;
-        result << "residual " << solver.iterate(&progress);
-        progress.end(result.str());
-    }
+    iterateWithProgress(solver, o.maxIterations, progress);
     if (!quiet && !solver.converged()) {
         warn(label, "stopped at --iterations " + std::to_string(o.maxIterations)
             + " with residual " + std::to_string(solver.residuals().back()) + " > --tolerance");

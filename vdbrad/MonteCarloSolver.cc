@@ -17,7 +17,7 @@ namespace vdbrad {
 
 namespace {
 
-using Accessor = openvdb::tree::ValueAccessor<const VoxelIndex::IndexTree>;
+using Accessor = VoxelIndex::Accessor;
 
 uint64_t
 mix(uint64_t z)   // splitmix64's finaliser: a counter-based hash, so no RNG state is shared
@@ -29,14 +29,6 @@ mix(uint64_t z)   // splitmix64's finaliser: a counter-based hash, so no RNG sta
 }
 
 double unit(uint64_t h) { return double(h >> 11) * 0x1.0p-53; }   // [0, 1)
-
-// Side of the empty node holding @a c (tile or missing child), 1 if c is in a leaf.
-int64_t
-emptyNodeSize(Accessor& acc, const openvdb::Coord& c)
-{
-    const int depth = acc.getValueDepth(c);
-    return depth <= 0 ? 4096 : depth == 1 ? 128 : depth == 2 ? 8 : 1;
-}
 
 // What the ray from the centre of voxel @a self along unit @a d hits (see the header).
 uint32_t
@@ -63,7 +55,7 @@ trace(const Scene& scene, Accessor& acc, const openvdb::CoordBBox& box, uint32_t
         const openvdb::Coord cell(int32_t(std::floor(q[0])), int32_t(std::floor(q[1])),
             int32_t(std::floor(q[2])));
         const int32_t index = acc.getValue(cell);
-        const int64_t size = index >= 0 ? 1 : emptyNodeSize(acc, cell);
+        const int64_t size = index >= 0 ? 1 : VoxelIndex::emptyNodeSide(acc, cell);
         Vec3d lo = cell.asVec3d();
         if (size > 1) {
             for (int k = 0; k < 3; ++k) lo[k] = double(int64_t(cell[k]) & ~(size - 1));
@@ -211,8 +203,9 @@ MonteCarloSolver::iterate(std::vector<ValueT>& B, std::vector<ValueT>& err)
 }
 
 double
-MonteCarloSolver::iterate()
+MonteCarloSolver::iterate(openvdb::util::NullInterrupter* interrupt)
 {
+    if (interrupt && interrupt->wasInterrupted()) throw Cancelled("Monte Carlo solve");
     const auto t0 = std::chrono::steady_clock::now();
     const double r = mScene.isRgb() ? iterate(mRgb, mRgbError) : iterate(mGrey, mGreyError);
     mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -229,10 +222,7 @@ MonteCarloSolver::converged() const
 void
 MonteCarloSolver::solve(openvdb::util::NullInterrupter* interrupt)
 {
-    while (!converged() && iterationCount() < mOptions.maxIterations) {
-        if (interrupt && interrupt->wasInterrupted()) throw Cancelled("Monte Carlo solve");
-        iterate();
-    }
+    while (!converged() && iterationCount() < mOptions.maxIterations) iterate(interrupt);
 }
 
 openvdb::GridPtrVec

@@ -59,7 +59,8 @@ public:
         openvdb::util::NullInterrupter* interrupt = nullptr);
 
     /// One Jacobi iteration; returns the relative residual.
-    double iterate();
+    /// @throw vdbrad::Cancelled if @a interrupt asks to stop (B is then unchanged)
+    double iterate(openvdb::util::NullInterrupter* interrupt = nullptr);
     /// Iterate until the tolerance or the cap. @throw vdbrad::Cancelled if interrupted.
     void solve(openvdb::util::NullInterrupter* interrupt = nullptr);
     bool converged() const;

@@ -9,9 +9,9 @@ namespace vdbrad {
 RayCastVisibility::RayCastVisibility(const VoxelIndex& index,
     const std::vector<openvdb::Vec3f>& normals, LineType lines, float depth,
     const std::vector<uint32_t>* regions)
-    : mIndex(index), mNormals(normals), mLines(lines), mDepth(depth), mBox(index.bbox())
+    : mIndex(index), mNormals(normals), mRegions(regions), mLines(lines), mDepth(depth)
+    , mBox(index.bbox())
 {
-    mRegions = regions ? *regions : std::vector<uint32_t>(index.size(), 0u);
 }
 
 RayCastVisibility::Line
@@ -43,7 +43,7 @@ RayCastVisibility::seen(const Line& line, Accessor& acc, uint32_t x,
     const int64_t a = abc[0];
     // Walk against the light: towards smaller canonical major coordinates if it travels +sigma.
     const int walk = travel > 0.f ? -1 : 1;
-    const uint32_t rx = mRegions[x];
+    const uint32_t rx = region(x);
     uint32_t cur = x;
 
     struct Met { int64_t pos; uint32_t index; Coord c; };
@@ -80,11 +80,11 @@ RayCastVisibility::seen(const Line& line, Accessor& acc, uint32_t x,
         // The exchange rule (LineSweep.h) on the chain from x back to the first sender.
         for (size_t k = 0; k < count; ++k) {
             const uint32_t v = met[k].index;
-            if (t.dot(mNormals[v]) > 0.f) return mRegions[v] == rx ? v : kNone;
+            if (t.dot(mNormals[v]) > 0.f) return region(v) == rx ? v : kNone;
             if ((mIndex.coord(cur) - met[k].c).asVec3s().dot(mNormals[v]) <= -mDepth) {
                 return kNone;
             }
-            if (mRegions[v] != rx) return kNone;
+            if (region(v) != rx) return kNone;
             cur = v;
         }
 
@@ -94,8 +94,7 @@ RayCastVisibility::seen(const Line& line, Accessor& acc, uint32_t x,
         int64_t step = 1;
         if (count == 0 && ny > 0 && nz > 0) {
             const Coord c0 = p.fromCanonical(Coord(int32_t(X), ys[0], zs[0]));
-            const int depth = acc.getValueDepth(c0);
-            const int64_t size = depth <= 0 ? 4096 : depth == 1 ? 128 : depth == 2 ? 8 : 1;
+            const int64_t size = VoxelIndex::emptyNodeSide(acc, c0);
             if (size > 1 && !acc.isValueOn(c0)) {
                 int64_t m = std::numeric_limits<int64_t>::max();
                 for (int k = 0; k < 3; ++k) {

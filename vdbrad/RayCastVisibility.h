@@ -29,11 +29,12 @@ class RayCastVisibility
 {
 public:
     static constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
-    using Accessor = openvdb::tree::ValueAccessor<const VoxelIndex::IndexTree>;
+    using Accessor = VoxelIndex::Accessor;
 
     /// @param normals  index-space unit normals, one per voxel of @a index
     /// @param depth    occlusion depth in voxels, > 0 (LineSweep.h)
-    /// @param regions  per voxel, the air region it faces (Enclosure.h); null: one region
+    /// @param regions  per voxel, the air region it faces (Enclosure.h); null: one region.
+    ///                 @a normals and @a regions are kept by reference.
     RayCastVisibility(const VoxelIndex& index, const std::vector<openvdb::Vec3f>& normals,
         LineType lines, float depth = 1.f, const std::vector<uint32_t>* regions = nullptr);
 
@@ -70,7 +71,8 @@ private:
 
     const VoxelIndex& mIndex;
     const std::vector<openvdb::Vec3f>& mNormals;
-    std::vector<uint32_t> mRegions;
+    const std::vector<uint32_t>* mRegions;   // null: one region
+    uint32_t region(uint32_t v) const { return mRegions ? (*mRegions)[v] : 0u; }
     LineType mLines;
     float mDepth;
     openvdb::CoordBBox mBox;

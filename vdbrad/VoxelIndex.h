@@ -53,6 +53,15 @@ public:
     /// The index tree: active exactly on the set, value = array index, background -1.
     const IndexTree& tree() const { return *mTree; }
 
+    using Accessor = openvdb::tree::ValueAccessor<const IndexTree>;
+    /// @brief Side of the empty node holding @a ijk (a tile or a missing child: 8, 128 or 4096,
+    /// aligned on multiples of it), or 1 if @a ijk lies in a leaf. What ray marches jump over.
+    static int64_t emptyNodeSide(Accessor& acc, const openvdb::Coord& ijk)
+    {
+        const int depth = acc.getValueDepth(ijk);   // -1: background, 0 root, 1, 2 internal, 3 leaf
+        return depth <= 0 ? 4096 : depth == 1 ? 128 : depth == 2 ? 8 : 1;
+    }
+
     /// Index-space bounding box of the set (empty box if the set is empty).
     openvdb::CoordBBox bbox() const;
 
