@@ -4,12 +4,16 @@
 
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/MonteCarloSolver.h"
+#include "vdbrad/ImageIO.h"
 #include "vdbrad/RadiositySolver.h"
+#include "vdbrad/Renderer.h"
+#include "vdbrad/Voxelizer.h"
 #include "vdbrad/vdbrad.h"
 
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
@@ -241,6 +245,58 @@ runMake(const Arguments& a)
     // Builder messages start with the scene's name already.
     file.grids = forFile("make", [&] { return builder->build(p); });
     progress.end();
+    file.metadata->insertMeta("creator", openvdb::StringMetadata(
+        std::string("vdbrad ") + VDBRAD_VERSION_STRING));
+    writeOutput(file, out);
+    return 0;
+}
+
+// ---- voxelize --------------------------------------------------------------------------------
+
+int
+runVoxelize(const Arguments& a)
+{
+    const std::string in = a.positional()[0], out = a.positional()[1];
+    VoxelizeOptions o;
+    if (a.has("voxel-size")) {
+        if (a.has("res")) throw UsageError("give --voxel-size or --res, not both");
+        o.voxelSize = a.getFloat("voxel-size");
+        if (!(o.voxelSize > 0.0) || !std::isfinite(o.voxelSize)) {
+            throw UsageError("--voxel-size must be > 0, got " + a.getString("voxel-size"));
+        }
+    }
+    o.resolution = a.getInt("res");
+    if (o.resolution < 1 || o.resolution > 16384) {
+        throw UsageError("--res must be in [1, 16384], got " + a.getString("res"));
+    }
+    o.separation = a.getInt("separation");
+    if (o.separation != 6 && o.separation != 26) {
+        throw UsageError("--separation must be 6 or 26, got " + a.getString("separation"));
+    }
+    o.defaultAlbedo = float(a.getFloat("albedo"));
+    if (!(o.defaultAlbedo >= 0.f && o.defaultAlbedo <= 1.f)) {
+        throw UsageError("--albedo must be in [0, 1], got " + a.getString("albedo"));
+    }
+    o.keepSdf = a.flag("keep-sdf");
+    if (isStdin(in)) throw UsageError("the mesh must be a file (its MTL files are found beside it)");
+    checkOutput(out, {in}, a.flag("overwrite"));
+
+    ProgressInterrupter progress(a.flag("quiet"));
+    progress.start(("reading " + in).c_str());
+    // Mesh errors already start with the file name.
+    const TriangleMesh mesh = forFile("voxelize", [&] { return readMesh(in); });
+    progress.end(std::to_string(mesh.triangles.size()) + " triangles");
+    VdbFile file;
+    file.grids = forFile(in, [&] { return voxelizeMesh(mesh, o, &progress); });
+    const openvdb::GridBase::Ptr normal = file.grids.front();
+    if (!a.flag("quiet")) {
+        std::cerr << "voxelized " << in << ": " << withCommas(normal->activeVoxelCount())
+                  << " surface voxels, voxel size " << normal->voxelSize()[0] << ", "
+                  << o.separation << "-separating\n";
+    }
+    if (!findGrid(file.grids, names::kEmission)) {
+        warn(in, "nothing emits (no MTL material with Ke > 0): the scene will be dark");
+    }
     file.metadata->insertMeta("creator", openvdb::StringMetadata(
         std::string("vdbrad ") + VDBRAD_VERSION_STRING));
     writeOutput(file, out);
@@ -559,6 +615,120 @@ runSolve(const Arguments& a)
     return 0;
 }
 
+// ---- render ----------------------------------------------------------------------------------
+
+// "a,b,c" -> exactly @a count finite numbers, or a UsageError naming the option.
+std::vector<double>
+numberList(const Arguments& a, const char* option, size_t count, const char* shape)
+{
+    const std::string text = a.getString(option);
+    std::vector<double> values;
+    std::istringstream is(text);
+    for (std::string item; std::getline(is, item, ',');) {
+        char* end = nullptr;
+        const double v = std::strtod(item.c_str(), &end);
+        if (item.empty() || *end != '\0' || !std::isfinite(v)) {
+            throw UsageError("--" + std::string(option) + ": '" + item + "' is not a number (expected "
+                + shape + ")");
+        }
+        values.push_back(v);
+    }
+    if (values.size() != count) {
+        throw UsageError("--" + std::string(option) + " needs " + std::to_string(count)
+            + " comma-separated numbers (" + shape + "), got '" + text + "'");
+    }
+    return values;
+}
+
+int
+runRender(const Arguments& a)
+{
+    const std::string in = a.positional()[0], out = a.positional()[1];
+    RenderOptions o;
+    o.scene = sceneOptions(a);
+    {
+        const std::string res = a.getString("res");
+        int w = 0, h = 0;
+        char tail = 0;
+        if (std::sscanf(res.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 1 || h < 1
+            || w > 16384 || h > 16384) {
+            throw UsageError("--res must be WIDTHxHEIGHT, each in [1, 16384], got '" + res + "'");
+        }
+        o.width = w;
+        o.height = h;
+    }
+    if (a.has("camera")) {
+        const std::vector<double> c = numberList(a, "camera", 10,
+            "eye x,y,z, target x,y,z, up x,y,z, vertical fov in degrees");
+        Camera cam;
+        cam.eye = openvdb::Vec3d(c[0], c[1], c[2]);
+        cam.target = openvdb::Vec3d(c[3], c[4], c[5]);
+        cam.up = openvdb::Vec3d(c[6], c[7], c[8]);
+        cam.fov = c[9];
+        if (!(cam.fov > 0.0 && cam.fov < 180.0)) {
+            throw UsageError("--camera: the field of view must be in (0, 180) degrees");
+        }
+        o.camera = cam;
+    }
+    const std::vector<double> bg = numberList(a, "background", 3, "r,g,b");
+    o.background = openvdb::Vec3f(float(bg[0]), float(bg[1]), float(bg[2]));
+    o.samplesPerPixel = a.getInt("aa");
+    if (o.samplesPerPixel < 1 || o.samplesPerPixel > 16) {
+        throw UsageError("--aa must be in [1, 16], got " + a.getString("aa"));
+    }
+    o.cloud.extinctionScale = float(a.getFloat("extinction-scale"));
+    if (!(o.cloud.extinctionScale > 0.f) || !std::isfinite(o.cloud.extinctionScale)) {
+        throw UsageError("--extinction-scale must be > 0, got " + a.getString("extinction-scale"));
+    }
+    o.cloudSource = a.getString("cloud-source");
+    const std::string type = a.getString("exr-type");
+    if (type != "half" && type != "float") {
+        throw UsageError("--exr-type must be half or float, got '" + type + "'");
+    }
+    ToneMap tone;
+    tone.exposureStops = a.getFloat("exposure");
+    if (!std::isfinite(tone.exposureStops)) throw UsageError("--exposure must be finite");
+    const std::string png = a.getString("png");
+    checkOutput(out, {in}, a.flag("overwrite"));
+    if (!png.empty()) {
+        if (isStdout(png)) throw UsageError("--png needs a file name");
+        checkOutput(png, {in}, a.flag("overwrite"));
+        if (png == out) throw UsageError("--png and the EXR output are the same file");
+    }
+
+    const VdbFile file = readInput(in);
+    const std::string label = inputLabel(in);
+    ProgressInterrupter progress(a.flag("quiet"));
+    const Image image = forFile(label, [&] {
+        progress.start("reading the scene");
+        Renderer renderer(file.grids, o, &progress);
+        progress.end();
+        const std::string step = "rendering " + std::to_string(o.width) + "x"
+            + std::to_string(o.height);
+        progress.start(step.c_str());
+        Image result = renderer.render(&progress);
+        progress.end();
+        return result;
+    });
+    for (const std::string& w : image.warnings) warn(label, w);
+    // Both images are encoded before either is written, so an error leaves neither behind.
+    const std::string exrBytes = forFile(outputLabel(out), [&] {
+        return encodeExr(image, type == "half" ? ExrPixel::Half : ExrPixel::Float);
+    });
+    const std::string pngBytes = png.empty() ? std::string()
+        : forFile(png, [&] { return encodePng(image, tone); });
+    if (isStdout(out)) {
+        if (std::fwrite(exrBytes.data(), 1, exrBytes.size(), stdout) != exrBytes.size()
+            || std::fflush(stdout) != 0) {
+            throw UserError("<stdout>: write failed");
+        }
+    } else {
+        forFile(out, [&] { writeFileAtomic(out, exrBytes); });
+    }
+    if (!png.empty()) forFile(png, [&] { writeFileAtomic(png, pngBytes); });
+    return 0;
+}
+
 // ---- help ------------------------------------------------------------------------------------
 
 int
@@ -612,6 +782,23 @@ commands()
                 "vdbrad make furnace-box - --albedo 0.9 | vdbrad info -",
                 "vdbrad make slab slab.vdb --tau 20"},
             runMake},
+        {"voxelize", "MESH OUT.vdb", 2, 2,
+            "voxelize an OBJ (with MTL: Kd albedo, Ke emission) or PLY mesh into a surface "
+            "scene (normal, albedo, emission grids)",
+            {{"res", OptionType::Int, "128", "256", "voxels along the mesh's longest axis, 1..16384"},
+                {"voxel-size", OptionType::Float, "", "0.01",
+                    "voxel edge in world units, instead of --res"},
+                {"separation", OptionType::Int, "26", "6",
+                    "26: the surface blocks naive lines (solve's default); 6: thinner, blocks "
+                    "standard lines only (solve with --lines standard)"},
+                {"albedo", OptionType::Float, "0.5", "0.7",
+                    "albedo of triangles without a material, in meshes that have materials"},
+                {"keep-sdf", OptionType::Flag, "", "",
+                    "also write the mesh's level set `surface` (closed meshes only)"},
+                kOverwrite, kQuiet},
+            {"vdbrad voxelize room.obj room.vdb --res 256",
+                "vdbrad voxelize room.obj - | vdbrad solve - - | vdbrad render - room.exr"},
+            runVoxelize},
         {"info", "FILE", 1, 1,
             "describe a file's grids and what the scene contract finds in it",
             sceneOptionSpecs(),
@@ -660,6 +847,30 @@ commands()
             {"vdbrad make cornell - | vdbrad solve - cornell_lit.vdb --directions 1000",
                 "vdbrad solve scene.vdb out.vdb --lines standard --tolerance 1e-4"},
             runSolve},
+        {"render", "IN OUT.exr", 2, 2,
+            "render a solved scene (surface radiosity, or a cloud's scattered light) to an "
+            "OpenEXR image, and optionally a PNG preview",
+            concat(sceneOptionSpecs(), {
+                {"res", OptionType::String, "640x480", "1920x1080", "image size WIDTHxHEIGHT"},
+                {"camera", OptionType::String, "", "0.28,0.27,-0.8,0.28,0.27,0,0,1,0,40",
+                    "eye x,y,z, target x,y,z, up x,y,z, vertical fov (degrees), world units; "
+                    "default: looking along +z at the scene's bounding box, which it frames"},
+                {"png", OptionType::String, "", "preview.png",
+                    "also write an 8-bit sRGB PNG, tone mapped (the 90th-percentile luminance "
+                    "of the scene's pixels maps to 0.8, then --exposure)"},
+                {"exposure", OptionType::Float, "0", "1", "PNG exposure adjustment, in stops"},
+                {"exr-type", OptionType::String, "half", "float", "EXR pixel type: half or float"},
+                {"aa", OptionType::Int, "1", "3", "antialiasing: N x N samples per pixel, 1..16"},
+                {"background", OptionType::String, "0,0,0", "0.2,0.3,0.5",
+                    "linear RGB seen where rays hit nothing"},
+                {"extinction-scale", OptionType::Float, "1", "10",
+                    "clouds: multiplies the density grid, as for the cloud solve"},
+                {"cloud-source", OptionType::String, "mean_intensity", "scatter",
+                    "clouds: the grid of mean radiance J; the source is albedo x J"},
+                kOverwrite, kQuiet}),
+            {"vdbrad render lit.vdb lit.exr --png lit.png",
+                "vdbrad voxelize room.obj - | vdbrad solve - - | vdbrad render - room.exr --res 1280x720"},
+            runRender},
         {"help", "[COMMAND]", 0, 1, "list commands, or describe one",
             {{"markdown", OptionType::Flag, "", "", "print the command reference as Markdown"}},
             {"vdbrad help make", "vdbrad help --markdown"},

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# The main job on the built-in default scene: installs the dependencies, builds vdbrad, builds the
-# Cornell box, solves its radiosity and describes the result. Outputs go to out/ (VDBRAD_OUT).
+# The main job on the built-in default scene: installs the dependencies, builds vdbrad, then runs
+# the whole chain on the Cornell box mesh (samples/meshes/cornell_box.obj) over pipes:
+# voxelize -> solve -> render. Leaves out/cornell_box_lit.vdb, out/cornell_box.exr and
+# out/cornell_box.png (VDBRAD_OUT sets the folder) and describes the solved scene.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -8,8 +10,9 @@ cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$(nproc)" --target vdbrad_cli
 out=${VDBRAD_OUT:-out}
 mkdir -p "$out"
-./build/vdbrad make cornell "$out/cornell.vdb" --res "${VDBRAD_RES:-128}"
-./build/vdbrad solve "$out/cornell.vdb" "$out/cornell_radiosity.vdb" \
-  --directions "${VDBRAD_DIRECTIONS:-300}" --tolerance 1e-4
-./build/vdbrad info "$out/cornell_radiosity.vdb"
-echo "main-job: wrote $out/cornell.vdb and $out/cornell_radiosity.vdb" >&2
+./build/vdbrad voxelize samples/meshes/cornell_box.obj - --res "${VDBRAD_RES:-128}" \
+  | ./build/vdbrad solve - - --directions "${VDBRAD_DIRECTIONS:-1000}" --tolerance 1e-4 \
+  | tee "$out/cornell_box_lit.vdb" \
+  | ./build/vdbrad render - "$out/cornell_box.exr" --png "$out/cornell_box.png"
+./build/vdbrad info "$out/cornell_box_lit.vdb"
+echo "main-job: wrote $out/cornell_box_lit.vdb, $out/cornell_box.exr and $out/cornell_box.png" >&2

@@ -1,5 +1,6 @@
 // The `vdbrad` command-line tool, driven as a user drives it: pipes, errors, help, interop with
 // Debian's vdb_tool / vdb_print, and the README's command reference.
+#include "ToolTest.h"
 #include "vdbrad/vdbrad.h"
 
 #include <openvdb/tools/LevelSetSphere.h>
@@ -15,69 +16,12 @@ using namespace vdbrad;
 
 namespace {
 
-struct Result
+using Result = test::ToolResult;
+using test::exists;
+using test::slurp;
+
+class CliTest : public test::ToolTest
 {
-    int status = -1;
-    std::string out, err;
-    std::vector<std::string> errLines() const
-    {
-        std::vector<std::string> lines;
-        std::istringstream is(err);
-        for (std::string l; std::getline(is, l);) lines.push_back(l);
-        return lines;
-    }
-};
-
-std::string
-slurp(const std::string& path)
-{
-    std::ifstream in(path, std::ios::binary);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-bool
-exists(const std::string& path)
-{
-    struct stat st;
-    return ::stat(path.c_str(), &st) == 0;
-}
-
-class CliTest : public ::testing::Test
-{
-protected:
-    static void SetUpTestSuite() { openvdb::initialize(); }
-
-    void SetUp() override
-    {
-        mDir = ::testing::TempDir() + "vdbrad_cli_"
-            + ::testing::UnitTest::GetInstance()->current_test_info()->name() + "/";
-        std::system(("rm -rf '" + mDir + "' && mkdir -p '" + mDir + "'").c_str());
-    }
-
-    std::string path(const std::string& name) const { return mDir + name; }
-
-    /// Run a bash command line where `vdbrad` is the tool under test.
-    Result sh(const std::string& cmd) const
-    {
-        const std::string out = mDir + ".stdout", err = mDir + ".stderr";
-        const std::string full = "cd '" + mDir + "' && vdbrad() { '" VDBRAD_CLI_PATH "' \"$@\"; }; "
-            + "{ " + cmd + "\n} > '" + out + "' 2> '" + err + "' < /dev/null";
-        Result r;
-        const int status = std::system(("bash -c " + quote(full)).c_str());
-        r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-        r.out = slurp(out);
-        r.err = slurp(err);
-        return r;
-    }
-
-    static std::string quote(const std::string& s)
-    {
-        std::string q = "'";
-        for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-        return q + "'";
-    }
-
-    std::string mDir;
 };
 
 openvdb::Vec3SGrid::Ptr

@@ -1,0 +1,544 @@
+#include "vdbrad/Renderer.h"
+
+#include "vdbrad/Errors.h"
+#include "vdbrad/GridContract.h"
+
+#include <openvdb/math/Stencils.h>
+#include <openvdb/tools/RayIntersector.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace vdbrad {
+
+using openvdb::Coord;
+using openvdb::CoordBBox;
+using openvdb::Vec3d;
+using openvdb::Vec3f;
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// A ray whose transmittance falls below this sees nothing more (its remaining contribution is
+// below float precision for any sensible background).
+constexpr double kOpaque = 1e-10;
+
+using Accessor = VoxelIndex::Accessor;
+using LevelSetIntersector = openvdb::tools::LevelSetRayIntersector<openvdb::FloatGrid>;
+
+template<typename VecT>
+bool finite(const VecT& v)
+{
+    return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+}
+
+// The cells of a voxel set along q(t) = q0 + t d, in order, for t in [tBegin, tEnd], in
+// coordinates shifted by half a voxel so that the cube of voxel c is the cell [c, c + 1).
+// visit(index, tIn, tOut) is called for every cell of the set the ray crosses (index >= 0 in
+// the index tree) and returns false to stop. Empty space is crossed a node at a time: a cell in
+// a tile or a missing child of the index tree (side 8, 128 or 4096) is left through that node's
+// far face in one step -- the hierarchical DDA of OpenVDB's ray intersectors on the index tree's
+// own levels. Cell boundaries are computed from q0 each time, never accumulated, so chord
+// lengths are exact to rounding.
+template<typename VisitT>
+void
+march(Accessor& acc, const CoordBBox& box, const Vec3d& q0, const Vec3d& d, double tBegin,
+    double tEnd, VisitT&& visit)
+{
+    if (box.empty()) return;
+    const Vec3d lo = box.min().asVec3d(), hi = (box.max() + Coord(1)).asVec3d();
+    Vec3d inv;
+    int step[3];
+    for (int k = 0; k < 3; ++k) {
+        step[k] = d[k] > 0.0 ? 1 : d[k] < 0.0 ? -1 : 0;
+        if (step[k] == 0) {
+            if (q0[k] < lo[k] || q0[k] >= hi[k]) return;
+            inv[k] = kInf;
+            continue;
+        }
+        inv[k] = 1.0 / d[k];
+        double ta = (lo[k] - q0[k]) * inv[k], tb = (hi[k] - q0[k]) * inv[k];
+        if (ta > tb) std::swap(ta, tb);
+        tBegin = std::max(tBegin, ta);
+        tEnd = std::min(tEnd, tb);
+    }
+    if (!(tBegin < tEnd)) return;
+
+    Coord c;
+    {
+        const Vec3d q = q0 + d * tBegin;
+        for (int k = 0; k < 3; ++k) {
+            // The entry point lies on the box; a far-side face belongs to the last cell.
+            c[k] = int32_t(std::clamp(std::floor(q[k]), lo[k], hi[k] - 1.0));
+        }
+    }
+    double t = tBegin;
+    while (t < tEnd) {
+        const int32_t index = acc.getValue(c);
+        const int64_t side = index >= 0 ? 1 : VoxelIndex::emptyNodeSide(acc, c);
+        int64_t origin[3];
+        double tOut = kInf;
+        int axis = 0;
+        for (int k = 0; k < 3; ++k) {
+            origin[k] = int64_t(c[k]) & ~(side - 1);
+            if (step[k] == 0) continue;
+            const double face = double(step[k] > 0 ? origin[k] + side : origin[k]);
+            const double tk = (face - q0[k]) * inv[k];
+            if (tk < tOut) { tOut = tk; axis = k; }
+        }
+        tOut = std::max(tOut, t);   // a rounding-level step backwards is no step
+        if (index >= 0 && !visit(index, t, std::min(tOut, tEnd))) return;
+        if (tOut >= tEnd) return;
+        if (side == 1) {
+            c[axis] += step[axis];
+        } else {
+            // Across the exit face on the exit axis; where the ray is on the others (clamped to
+            // the node we leave, against rounding at its edges).
+            const Vec3d q = q0 + d * tOut;
+            for (int k = 0; k < 3; ++k) {
+                if (k == axis) {
+                    c[k] = int32_t(step[k] > 0 ? origin[k] + side : origin[k] - 1);
+                } else {
+                    c[k] = int32_t(std::clamp(int64_t(std::floor(q[k])), origin[k],
+                        origin[k] + side - 1));
+                }
+            }
+        }
+        t = tOut;
+    }
+}
+
+// Index-space ray of a world-space ray, parametrised by world distance: the same t in both.
+struct IndexRay
+{
+    Vec3d origin, dir;
+};
+
+IndexRay
+toIndex(const openvdb::math::Transform& xform, const Vec3d& eye, const Vec3d& dir)
+{
+    return IndexRay{xform.worldToIndex(eye), xform.baseMap()->applyInverseJacobian(dir)};
+}
+
+// World bounds of the cubes of the voxels in @a b.
+openvdb::BBoxd
+worldBoundsOf(const CoordBBox& b, const openvdb::math::Transform& xform)
+{
+    const openvdb::BBoxd cubes(b.min().asVec3d() - Vec3d(0.5), b.max().asVec3d() + Vec3d(0.5));
+    return xform.indexToWorld(cubes);
+}
+
+void
+checkCamera(const Camera& cam)
+{
+    if (!finite(cam.eye) || !finite(cam.target) || !finite(cam.up) || !std::isfinite(cam.fov)) {
+        OPENVDB_THROW(openvdb::ValueError, "camera has a NaN or infinite value (eye " << cam.eye
+            << ", target " << cam.target << ", up " << cam.up << ", fov " << cam.fov << ")");
+    }
+    if (!(cam.fov > 0.0 && cam.fov < 180.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "camera field of view must be in (0, 180) degrees, got "
+            << cam.fov);
+    }
+    const Vec3d view = cam.target - cam.eye;
+    if (!(view.length() > 0.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "camera eye and target are the same point " << cam.eye);
+    }
+    // A relative test: the up vector must not be (nearly) parallel to the view direction.
+    if (!(view.unit().cross(cam.up).length() > 1e-6 * cam.up.length())
+        || !(cam.up.length() > 0.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "camera up vector " << cam.up
+            << " is zero or parallel to the view direction " << view.unit());
+    }
+}
+
+template<typename GridT>
+size_t
+missingVoxels(const GridT& grid, const VoxelIndex& index)
+{
+    return tbb::parallel_reduce(tbb::blocked_range<size_t>(0, index.leafCount()), size_t(0),
+        [&](const tbb::blocked_range<size_t>& r, size_t missing) {
+            auto acc = grid.getConstAccessor();
+            for (size_t n = r.begin(); n != r.end(); ++n) {
+                for (size_t i = index.leafBegin(n); i < index.leafBegin(n + 1); ++i) {
+                    if (!acc.isValueOn(index.coord(i))) ++missing;
+                }
+            }
+            return missing;
+        }, [](size_t a, size_t b) { return a + b; });
+}
+
+} // namespace
+
+// ---- camera ------------------------------------------------------------------------------------
+
+Camera
+defaultCamera(const openvdb::BBoxd& worldBounds, double aspect, double fov)
+{
+    const Vec3d lo = worldBounds.min(), hi = worldBounds.max();
+    if (!finite(lo) || !finite(hi) || !(hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2])) {
+        OPENVDB_THROW(openvdb::ValueError, "cannot place a camera around bounds " << lo << " - "
+            << hi);
+    }
+    if (!(aspect > 0.0) || !std::isfinite(aspect)) {
+        OPENVDB_THROW(openvdb::ValueError, "aspect ratio must be positive, got " << aspect);
+    }
+    if (!(fov > 0.0 && fov < 180.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "field of view must be in (0, 180) degrees, got "
+            << fov);
+    }
+    const Vec3d centre = (lo + hi) * 0.5, half = (hi - lo) * 0.5;
+    const double tanV = std::tan(0.5 * fov * M_PI / 180.0), tanH = tanV * aspect;
+    // The near face is the nearest, so its corners subtend the widest angles: it must fit.
+    constexpr double margin = 1.1;
+    double dist = half[2] + margin * std::max(half[1] / tanV, half[0] / tanH);
+    if (!(dist > half[2])) dist = half[2] + 1.0;   // a point: any distance shows it
+    Camera cam;
+    cam.eye = centre - Vec3d(0.0, 0.0, dist);
+    cam.target = centre;
+    cam.up = Vec3d(0.0, 1.0, 0.0);
+    cam.fov = fov;
+    return cam;
+}
+
+// ---- per-thread tracing ------------------------------------------------------------------------
+
+struct Renderer::LevelSetShared
+{
+    LevelSetIntersector intersector;
+};
+
+struct Renderer::Tracer
+{
+    explicit Tracer(const Renderer& r)
+        : mR(r)
+    {
+        if (r.mHasSurface) {
+            mSurface.emplace(r.mScene.voxels().tree());
+            if (r.mLevelSet) {
+                // Copies share the grid; each thread needs its own accessor inside.
+                mLevelSet.emplace(r.mLevelSetShared->intersector);
+                mStencil.emplace(*r.mLevelSet);
+            }
+        }
+        if (r.mHasCloud) {
+            mCloud.emplace(r.mCloud.voxels().tree());
+        }
+    }
+
+    // First surface hit along the world ray (eye, unit dir) within [t0, t1]: its world distance
+    // and radiosity.
+    bool hitSurface(const Vec3d& eye, const Vec3d& dir, double t0, double t1, double& tHit,
+        Vec3f& value)
+    {
+        const Scene& scene = mR.mScene;
+        const IndexRay ir = toIndex(scene.transform(), eye, dir);
+        if (mLevelSet) {
+            const double len = ir.dir.length();   // index units per world unit
+            const double it1 = t1 * len;
+            const RayT iRay(ir.origin, ir.dir / len, t0 * len,
+                std::isfinite(it1) ? it1 : std::numeric_limits<double>::max());
+            Vec3d p;
+            double iTime = 0.0;
+            if (!mLevelSet->intersectsIS(iRay, p, iTime)) return false;
+            tHit = iTime / len;
+            mStencil->moveTo(p);
+            Vec3d n = mStencil->gradient(p);
+            const double nl = n.length();
+            // Where the gradient vanishes no direction is preferred: plain trilinear weights.
+            n = nl > 0.0 ? n / nl : Vec3d(0.0);
+            value = shade(p, Vec3f(n), -1);
+            return true;
+        }
+        int32_t hit = -1;
+        march(*mSurface, mR.mSurfaceBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
+            [&](int32_t index, double tIn, double) {
+                hit = index;
+                tHit = tIn;
+                return false;
+            });
+        if (hit < 0) return false;
+        const Vec3d p = ir.origin + ir.dir * tHit;
+        value = shade(p, scene.normal(size_t(hit)), hit);
+        return true;
+    }
+
+    // Radiosity at index-space point p of a surface whose normal there is nHit (see the header).
+    Vec3f shade(const Vec3d& p, const Vec3f& nHit, int32_t hitVoxel)
+    {
+        const Scene& scene = mR.mScene;
+        const Vec3d fl(std::floor(p[0]), std::floor(p[1]), std::floor(p[2]));
+        const Coord base{int32_t(fl[0]), int32_t(fl[1]), int32_t(fl[2])};
+        const Vec3d f = p - fl;
+        Vec3d sum(0.0);
+        double wsum = 0.0, bestTri = -1.0;
+        int32_t best = hitVoxel;
+        for (int dx = 0; dx < 2; ++dx) {
+            for (int dy = 0; dy < 2; ++dy) {
+                for (int dz = 0; dz < 2; ++dz) {
+                    const int32_t i = mSurface->getValue(base.offsetBy(dx, dy, dz));
+                    if (i < 0) continue;
+                    const double tri = (dx ? f[0] : 1.0 - f[0]) * (dy ? f[1] : 1.0 - f[1])
+                        * (dz ? f[2] : 1.0 - f[2]);
+                    if (hitVoxel < 0 && tri > bestTri) { best = i; bestTri = tri; }
+                    const double w = tri * std::max(0.0, double(scene.normal(size_t(i)).dot(nHit)));
+                    if (w > 0.0) {
+                        sum += Vec3d(mR.mRadiosity.rgb(size_t(i))) * w;
+                        wsum += w;
+                    }
+                }
+            }
+        }
+        if (wsum > 0.0) return Vec3f(sum / wsum);
+        if (best >= 0) return mR.mRadiosity.rgb(size_t(best));
+        return Vec3f(0.f);   // a level-set crossing with no surface voxel around it
+    }
+
+    // Emission and absorption through the cloud along [t0, t1] (world distances): adds the
+    // in-scattered light to L and multiplies T by the transmittance.
+    void throughCloud(const Vec3d& eye, const Vec3d& dir, double t0, double t1, Vec3d& L,
+        double& T)
+    {
+        const Cloud& cloud = mR.mCloud;
+        const Attribute& source = mR.mSource;
+        const bool emits = mR.mCloudEmits;
+        const IndexRay ir = toIndex(cloud.transform(), eye, dir);
+        march(*mCloud, mR.mCloudBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
+            [&](int32_t index, double tIn, double tOut) {
+                const double x = double(cloud.extinction(size_t(index))) * (tOut - tIn);
+                if (emits) L += Vec3d(source.rgb(size_t(index))) * (T * -std::expm1(-x));
+                T *= std::exp(-x);
+                return T >= kOpaque;
+            });
+    }
+
+    Vec3f radiance(const RayT& ray, float& coverage)
+    {
+        const Vec3d eye = ray.eye(), dir = ray.dir();
+        const double t0 = ray.t0(), t1 = ray.t1();
+        double tHit = kInf;
+        Vec3f surface(0.f);
+        const bool hit = mR.mHasSurface && hitSurface(eye, dir, t0, t1, tHit, surface);
+        Vec3d L(0.0);
+        double T = 1.0;
+        if (mR.mHasCloud) throughCloud(eye, dir, t0, hit ? tHit : t1, L, T);
+        if (T < kOpaque) T = 0.0;
+        const Vec3f behind = hit ? surface : mR.mOptions.background;
+        coverage = hit ? 1.f : float(1.0 - T);
+        return Vec3f(L + Vec3d(behind) * T);
+    }
+
+    const Renderer& mR;
+    std::optional<Accessor> mSurface, mCloud;
+    std::optional<LevelSetIntersector> mLevelSet;
+    std::optional<openvdb::math::BoxStencil<openvdb::FloatGrid>> mStencil;
+};
+
+// ---- the renderer ------------------------------------------------------------------------------
+
+Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+    : mOptions(options)
+{
+    if (options.width < 1 || options.width > 16384 || options.height < 1
+        || options.height > 16384) {
+        OPENVDB_THROW(openvdb::ValueError, "image size must be 1..16384 pixels each way, got "
+            << options.width << " x " << options.height);
+    }
+    if (options.samplesPerPixel < 1 || options.samplesPerPixel > 16) {
+        OPENVDB_THROW(openvdb::ValueError, "samples per pixel must be in 1..16 (n gives n x n "
+            "samples), got " << options.samplesPerPixel);
+    }
+    if (!finite(options.background)) {
+        OPENVDB_THROW(openvdb::ValueError, "background has a NaN or infinite value "
+            << options.background);
+    }
+    if (options.camera) checkCamera(*options.camera);
+
+    const openvdb::GridBase::ConstPtr radiosity = findGrid(grids, names::kRadiosity);
+    const GridRoles roles = identifyRoles(grids, options.scene.surface, options.cloud.density);
+    if (!radiosity && !roles.density) {
+        OPENVDB_THROW(openvdb::ValueError, "no radiosity grid: solve the scene first (vdbrad "
+            "solve IN OUT), then render the solved file");
+    }
+
+    if (radiosity) {
+        if (!radiosity->isType<openvdb::FloatGrid>() && !radiosity->isType<openvdb::Vec3SGrid>()) {
+            OPENVDB_THROW(openvdb::TypeError, "grid 'radiosity' has type "
+                << radiosity->valueType() << ", expected float or vec3s");
+        }
+        mScene = buildScene(grids, options.scene, interrupt);
+        const std::string advice = "render with the same --surface and --separation as the solve";
+        if (radiosity->transform() != mScene.transform()) {
+            OPENVDB_THROW(openvdb::ValueError, "the radiosity grid is not on the transform of the "
+                "surface '" << mScene.surfaceName() << "': " << advice);
+        }
+        const size_t missing = radiosity->isType<openvdb::FloatGrid>()
+            ? missingVoxels(static_cast<const openvdb::FloatGrid&>(*radiosity), mScene.voxels())
+            : missingVoxels(static_cast<const openvdb::Vec3SGrid&>(*radiosity), mScene.voxels());
+        const openvdb::Index64 active = radiosity->activeVoxelCount();
+        if (missing > 0 || active != mScene.size()) {
+            OPENVDB_THROW(openvdb::ValueError, "the radiosity grid's " << active
+                << " active voxels are not the " << mScene.size() << " surface voxels of '"
+                << mScene.surfaceName() << "' (" << missing << " surface voxels have no value): "
+                << advice);
+        }
+        if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled("render set-up");
+        mRadiosity = Attribute::sample(*radiosity, mScene.voxels(), names::kRadiosity,
+            std::numeric_limits<float>::lowest());
+        if (mScene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
+            const auto ls = findGrid(grids, mScene.surfaceName());
+            // A shallow copy: the tree is shared; only the class changes, for grids whose
+            // exporter dropped it (the contract accepts them when named).
+            mLevelSet = std::const_pointer_cast<openvdb::FloatGrid>(
+                static_cast<const openvdb::FloatGrid&>(*ls).copy());
+            mLevelSet->setGridClass(openvdb::GRID_LEVEL_SET);
+            try {
+                mLevelSetShared.reset(new LevelSetShared{LevelSetIntersector(*mLevelSet)});
+            } catch (const openvdb::Exception& e) {
+                OPENVDB_THROW(openvdb::ValueError, "level set '" << mScene.surfaceName()
+                    << "' cannot be ray traced: " << errorMessage(e));
+            }
+        }
+        mHasSurface = true;
+        mSurfaceBox = mScene.voxels().bbox();
+        mWorldBounds = worldBoundsOf(mSurfaceBox, mScene.transform());
+    } else if (roles.surface) {
+        mWarnings.push_back("surface '" + roles.surface->getName() + "' not shown: no radiosity "
+            "grid (solve the scene first)");
+    }
+
+    if (roles.density) {
+        mCloud = buildCloud(grids, options.cloud, interrupt);
+        if (options.cloudSource.empty()) {
+            OPENVDB_THROW(openvdb::ValueError, "the cloud source grid name is empty");
+        }
+        const openvdb::GridBase::ConstPtr J = findGrid(grids, options.cloudSource);
+        if (J) {
+            const auto& density = *findGrid(grids, options.cloud.density);
+            if (J->transform() != density.transform()) {
+                OPENVDB_THROW(openvdb::ValueError, "cloud source '" << options.cloudSource
+                    << "' is not on the transform of '" << options.cloud.density << "'");
+            }
+            const Attribute j = Attribute::sample(*J, mCloud.voxels(), options.cloudSource, 0.f);
+            const Attribute& albedo = mCloud.albedo();
+            const size_t n = mCloud.size();
+            if (j.isRgb() || albedo.isRgb()) {
+                std::vector<Vec3f> s(n);
+                for (size_t i = 0; i < n; ++i) {
+                    const Vec3f a = albedo.rgb(i), v = j.rgb(i);
+                    s[i] = Vec3f(a[0] * v[0], a[1] * v[1], a[2] * v[2]);
+                }
+                mSource = Attribute::fromRgb(std::move(s));
+            } else {
+                std::vector<float> s(n);
+                for (size_t i = 0; i < n; ++i) s[i] = albedo.grey(i) * j.grey(i);
+                mSource = Attribute::fromGrey(std::move(s));
+            }
+        } else {
+            mWarnings.push_back("cloud '" + options.cloud.density + "' has no source grid '"
+                + options.cloudSource + "': rendered absorbing only (solve the cloud first)");
+        }
+        mHasCloud = true;
+        mCloudEmits = !mSource.isZero();
+        mCloudBox = mCloud.voxels().bbox();
+        const openvdb::BBoxd b = worldBoundsOf(mCloudBox, mCloud.transform());
+        if (mHasSurface) mWorldBounds.expand(b);
+        else mWorldBounds = b;
+    }
+
+    const double aspect = double(options.width) / double(options.height);
+    mCamera = options.camera ? *options.camera : defaultCamera(mWorldBounds, aspect);
+    mForward = (mCamera.target - mCamera.eye).unit();
+    mRight = mForward.cross(mCamera.up).unit();   // right-handed: along +z, y up, right is -x
+    mUp = mRight.cross(mForward);
+    mTanHalf = std::tan(0.5 * mCamera.fov * M_PI / 180.0);
+    mAspect = aspect;
+}
+
+Renderer::~Renderer() = default;
+
+Renderer::RayT
+Renderer::primaryRay(double x, double y) const
+{
+    const double u = (2.0 * x / double(mOptions.width) - 1.0) * mTanHalf * mAspect;
+    const double v = (1.0 - 2.0 * y / double(mOptions.height)) * mTanHalf;
+    const Vec3d dir = (mForward + mRight * u + mUp * v).unit();
+    return RayT(mCamera.eye, dir, 0.0, kInf);
+}
+
+Vec3f
+Renderer::radiance(const RayT& worldRay, float* coverage) const
+{
+    Tracer tracer(*this);
+    float c = 0.f;
+    const Vec3f L = tracer.radiance(worldRay, c);
+    if (coverage) *coverage = c;
+    return L;
+}
+
+Image
+Renderer::render(openvdb::util::NullInterrupter* interrupt) const
+{
+    const int W = mOptions.width, H = mOptions.height, n = mOptions.samplesPerPixel;
+    Image image;
+    image.width = W;
+    image.height = H;
+    image.pixels.assign(size_t(W) * size_t(H), Vec3f(0.f));
+    image.coverage.assign(size_t(W) * size_t(H), 0.f);
+    image.warnings = mWarnings;
+    std::atomic<int> rowsDone{0};
+    std::atomic<bool> cancelled{false};
+    const double inv = 1.0 / double(n * n);
+    tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
+        if (cancelled) return;
+        Tracer tracer(*this);
+        for (int y = rows.begin(); y != rows.end(); ++y) {
+            for (int x = 0; x < W; ++x) {
+                Vec3d sum(0.0);
+                double cov = 0.0;
+                for (int sy = 0; sy < n; ++sy) {
+                    for (int sx = 0; sx < n; ++sx) {
+                        float c = 0.f;
+                        sum += Vec3d(tracer.radiance(primaryRay(x + (sx + 0.5) / n,
+                            y + (sy + 0.5) / n), c));
+                        cov += c;
+                    }
+                }
+                const size_t at = size_t(y) * size_t(W) + size_t(x);
+                image.pixels[at] = Vec3f(sum * inv);
+                image.coverage[at] = float(cov * inv);
+            }
+            const int done = ++rowsDone;
+            if (openvdb::util::wasInterrupted(interrupt, int(int64_t(100) * done / H))) {
+                cancelled = true;
+                return;
+            }
+        }
+    });
+    if (cancelled) throw Cancelled("render");
+    return image;
+}
+
+Image
+renderImage(const openvdb::GridPtrVec& grids, const RenderOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    // end() also when an exception leaves, so a progress bar is always closed.
+    struct Scope
+    {
+        openvdb::util::NullInterrupter* i;
+        ~Scope() { if (i) i->end(); }
+    } scope{interrupt};
+    if (interrupt) interrupt->start("rendering");
+    const Renderer renderer(grids, options, interrupt);
+    return renderer.render(interrupt);
+}
+
+} // namespace vdbrad
