@@ -28,7 +28,7 @@ main(int argc, char** argv)
         bool reversed = false;
         const vdbrad::LeafOrder order(scene.voxels(),
             vdbrad::LeafOrder::baseSigns(set.direction(d), reversed));
-        const vdbrad::LineSweep sweep(scene.voxels(), order, scene.normals(),
+        const vdbrad::LineSweep sweep(scene.voxels(), order, &scene.normals(),
             vdbrad::LineType::Naive);
         std::vector<float> G(scene.size(), 0.f);
         vdbrad::LineSweep::Workspace<float> work;

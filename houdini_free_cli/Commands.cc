@@ -4,6 +4,7 @@
 
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/MonteCarloSolver.h"
+#include "vdbrad/CloudTransfer.h"
 #include "vdbrad/ImageIO.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/Renderer.h"
@@ -729,6 +730,78 @@ runRender(const Arguments& a)
     return 0;
 }
 
+// ---- solve-cloud -----------------------------------------------------------------------------
+
+int
+runSolveCloud(const Arguments& a)
+{
+    const std::string in = a.positional()[0], out = a.positional()[1];
+    CloudOptions cloudOpts;
+    cloudOpts.extinctionScale = float(a.getFloat("extinction-scale"));
+    if (!(cloudOpts.extinctionScale > 0.f) || !std::isfinite(cloudOpts.extinctionScale)) {
+        throw UsageError("--extinction-scale must be > 0, got " + a.getString("extinction-scale"));
+    }
+    cloudOpts.defaultAlbedo = float(a.getFloat("albedo"));
+    if (!(cloudOpts.defaultAlbedo >= 0.f && cloudOpts.defaultAlbedo <= 1.f)) {
+        throw UsageError("--albedo must be in [0, 1], got " + a.getString("albedo"));
+    }
+    CloudTransferOptions o;
+    const std::vector<double> sun = numberList(a, "sun", 2, "zenith,azimuth in degrees");
+    o.sunZenith = sun[0];
+    o.sunAzimuth = sun[1];
+    if (!(o.sunZenith >= 0.0 && o.sunZenith <= 89.9)) {
+        throw UsageError("--sun: the zenith angle must be in [0, 89.9] degrees");
+    }
+    const std::string up = a.getString("up");
+    if (up == "x") o.up = 0;
+    else if (up == "y") o.up = 1;
+    else if (up == "z") o.up = 2;
+    else throw UsageError("--up must be x, y or z, got '" + up + "'");
+    o.periodic = a.flag("periodic");
+    o.directions = a.getInt("directions");
+    if (o.directions < 1 || size_t(o.directions) > DirectionSet::maxCount()) {
+        throw UsageError("--directions must be in [1, " + std::to_string(DirectionSet::maxCount())
+            + "], got " + a.getString("directions"));
+    }
+    o.maxIterations = a.getInt("iterations");
+    if (o.maxIterations < 1) throw UsageError("--iterations must be >= 1");
+    o.tolerance = a.getFloat("tolerance");
+    if (!(o.tolerance >= 0.0)) throw UsageError("--tolerance must be >= 0");
+    o.irradiance = a.getFloat("irradiance");
+    if (!(o.irradiance >= 0.0) || !std::isfinite(o.irradiance)) {
+        throw UsageError("--irradiance must be >= 0");
+    }
+    const std::string name = a.getString("output-name");
+    if (name.empty()) throw UsageError("--output-name must not be empty");
+    checkOutput(out, {in}, a.flag("overwrite"));
+
+    const VdbFile file = readInput(in);
+    const std::string label = inputLabel(in);
+    const bool quiet = a.flag("quiet");
+    ProgressInterrupter progress(quiet);
+    const Cloud cloud = forFile(label, [&] { return buildCloud(file.grids, cloudOpts, &progress); });
+    CloudTransfer transfer = forFile(label, [&] { return CloudTransfer(cloud, o, &progress); });
+    if (!quiet) {
+        std::cerr << "cloud: " << withCommas(cloud.size()) << " voxels, "
+                  << transfer.directions().size() << " directions (nearest to " << o.directions
+                  << "), " << (o.periodic ? "periodic" : "open") << " boundaries\n";
+    }
+    iterateWithProgress(transfer, o.maxIterations, progress);
+    const CloudBudget& b = transfer.budget();
+    if (!quiet) {
+        std::cerr << "albedo " << b.albedo << ", transmittance " << b.transmittance
+                  << " (direct " << b.directTransmittance << "), absorptance " << b.absorptance
+                  << "; balance " << b.balance() << "\n";
+        if (!transfer.converged()) {
+            warn(label, "stopped at --iterations " + std::to_string(o.maxIterations)
+                + " with residual " + std::to_string(transfer.residuals().back())
+                + " > --tolerance");
+        }
+    }
+    writeOutput(withGrids(file, {transfer.grid(name)}), out);
+    return 0;
+}
+
 // ---- help ------------------------------------------------------------------------------------
 
 int
@@ -847,6 +920,31 @@ commands()
             {"vdbrad make cornell - | vdbrad solve - cornell_lit.vdb --directions 1000",
                 "vdbrad solve scene.vdb out.vdb --lines standard --tolerance 1e-4"},
             runSolve},
+        {"solve-cloud", "IN OUT", 2, 2,
+            "solve the light in a fog volume (`density` grid) lit by the sun; writes the input's "
+            "grids plus the mean radiance `mean_intensity`",
+            {{"sun", OptionType::String, "0,0", "60,30",
+                    "sun zenith angle from the up axis and azimuth, degrees"},
+                {"up", OptionType::String, "y", "z", "vertical axis: y (Houdini) or z (Blender)"},
+                {"periodic", OptionType::Flag, "", "",
+                    "wrap light around the two horizontal axes (a tile of an infinite field)"},
+                {"albedo", OptionType::Float, "1", "0.99",
+                    "single-scattering albedo in [0, 1] where the file has no `albedo` grid"},
+                {"extinction-scale", OptionType::Float, "1", "10",
+                    "extinction per world unit = density x this"},
+                {"irradiance", OptionType::Float, "1", "3",
+                    "sun irradiance F0 on a plane normal to the beam"},
+                {"directions", OptionType::Int, "300", "1000",
+                    "direction pairs swept per iteration (nearest achievable count)"},
+                {"iterations", OptionType::Int, "1000", "100", "source-iteration cap, >= 1"},
+                {"tolerance", OptionType::Float, "1e-6", "1e-4",
+                    "stop when max|J' - J| / max|J'| falls below this"},
+                {"output-name", OptionType::String, "mean_intensity", "scatter",
+                    "name of the output grid (e.g. `scatter` for Houdini volume shaders)"},
+                kOverwrite, kQuiet},
+            {"vdbrad make cumulus - | vdbrad solve-cloud - lit.vdb --sun 40,0",
+                "vdbrad solve-cloud slab.vdb out.vdb --periodic --sun 60,0 --albedo 0"},
+            runSolveCloud},
         {"render", "IN OUT.exr", 2, 2,
             "render a solved scene (surface radiosity, or a cloud's scattered light) to an "
             "OpenEXR image, and optionally a PNG preview",

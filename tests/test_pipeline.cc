@@ -237,4 +237,58 @@ TEST_F(PipelineTest, RenderErrorsGiveOneLineAndKeepOutputs)
     EXPECT_EQ(decodeExr(slurp(path("out.exr"))).width, 32);
 }
 
+TEST_F(PipelineTest, CumulusSolvesConservesEnergyAndRenders)
+{
+    // The procedural cumulus (conservative, optical diameter 20) through solve-cloud and render.
+    const Result r = sh("vdbrad make cumulus - --res 24 --quiet | vdbrad solve-cloud - lit.vdb "
+        "--sun 30,45 --directions 111 --tolerance 1e-6 --quiet && vdbrad render lit.vdb c.exr "
+        "--res 64x48 --exr-type float --background 0.2,0.3,0.5 --quiet");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const VdbFile lit = readVdbFile(path("lit.vdb"));
+    openvdb::GridBase::ConstPtr J = findGrid(lit.grids, "mean_intensity");
+    ASSERT_TRUE(J);
+    EXPECT_EQ(J->activeVoxelCount(), findGrid(lit.grids, "density")->activeVoxelCount());
+    const double R = J->metaValue<float>("vdbrad:albedo");
+    const double T = J->metaValue<float>("vdbrad:transmittance");
+    const double A = J->metaValue<float>("vdbrad:absorptance");
+    EXPECT_NEAR(R + T + A, 1.0, 1e-4);   // the energy balance
+    EXPECT_EQ(A, 0.0);                   // albedo 1: nothing absorbed
+    EXPECT_GT(R, 0.05);
+    EXPECT_GT(J->metaValue<int>("vdbrad:iterations"), 1);
+    // The cloud hides the background where it is thick and glows where lit: the image differs
+    // from the plain background, and every pixel is finite and non-negative.
+    const Image image = decodeExr(slurp(path("c.exr")));
+    int changed = 0;
+    for (const openvdb::Vec3f& c : image.pixels) {
+        ASSERT_TRUE(std::isfinite(c[0]) && c[0] >= 0.f);
+        if (std::abs(c[2] - 0.5f) > 0.01f) ++changed;
+    }
+    EXPECT_GT(changed, 200);
+}
+
+TEST_F(PipelineTest, SolveCloudErrorsGiveOneLine)
+{
+    Result r = sh("vdbrad make cumulus c.vdb --res 8 --quiet && vdbrad make cornell s.vdb --res 8 "
+        "--quiet");
+    ASSERT_EQ(r.status, 0) << r.err;
+    struct Case { std::string args, message; int status; };
+    const std::vector<Case> cases = {
+        {"s.vdb out.vdb", "density", 1},
+        {"c.vdb out.vdb --sun 95,0", "zenith angle must be in [0, 89.9]", 2},
+        {"c.vdb out.vdb --sun 30", "--sun needs 2", 2},
+        {"c.vdb out.vdb --up w", "--up must be x, y or z", 2},
+        {"c.vdb out.vdb --albedo 1.5", "--albedo must be in [0, 1]", 2},
+        {"c.vdb out.vdb --extinction-scale 0", "--extinction-scale must be > 0", 2},
+        {"c.vdb out.vdb --directions 0", "--directions must be in", 2},
+        {"c.vdb out.vdb --output-name ''", "--output-name must not be empty", 2},
+    };
+    for (const Case& c : cases) {
+        r = sh("vdbrad solve-cloud " + c.args);
+        EXPECT_EQ(r.status, c.status) << c.args << "\n" << r.err;
+        EXPECT_EQ(r.errLines().size(), 1u) << c.args << "\n" << r.err;
+        EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << "\n" << r.err;
+        EXPECT_FALSE(exists(path("out.vdb"))) << c.args;
+    }
+}
+
 } // namespace

@@ -316,7 +316,7 @@ TEST_F(RadiosityTest, StreamingSweepAndExplicitLineListsAgree)
         for (size_t d = 0; d < set.size(); ++d) {
             bool reversed = false;
             const LeafOrder order(scene.voxels(), LeafOrder::baseSigns(set.direction(d), reversed));
-            const LineSweep sweep(scene.voxels(), order, scene.normals(), type);
+            const LineSweep sweep(scene.voxels(), order, &scene.normals(), type);
             using Seen = std::tuple<uint32_t, uint32_t, float>;
             std::vector<Seen> a, b;
             LineSweep::Workspace<uint32_t> work;

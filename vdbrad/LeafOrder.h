@@ -46,6 +46,31 @@ public:
     /// +1, with y and z flipped to match), and whether sigma is served backwards.
     static Signs baseSigns(const openvdb::Coord& sigma, bool& reversed);
 
+    /// The directions of a set dealt to the four base patterns, as every solver sweeps them.
+    struct Patterns
+    {
+        std::array<Signs, 4> signs{};                     ///< pattern p's base signs
+        std::array<std::vector<size_t>, 4> directions;    ///< direction indices of pattern p
+        std::vector<char> reversed;                       ///< per direction: served backwards
+    };
+    /// @brief Deal @a directions (their count, and the k-th one) to patterns
+    /// p = 2 (y sign < 0) + (z sign < 0).
+    template<typename DirectionOf>
+    static Patterns patterns(size_t count, DirectionOf&& directionOf)
+    {
+        Patterns out;
+        out.reversed.resize(count);
+        for (size_t k = 0; k < count; ++k) {
+            bool rev = false;
+            const Signs signs = baseSigns(directionOf(k), rev);
+            const size_t p = size_t((signs[1] < 0 ? 2 : 0) + (signs[2] < 0 ? 1 : 0));
+            out.signs[p] = signs;
+            out.directions[p].push_back(k);
+            out.reversed[k] = rev ? 1 : 0;
+        }
+        return out;
+    }
+
 private:
     Signs mSigns;
     std::vector<uint32_t> mOrder;

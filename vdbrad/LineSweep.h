@@ -28,6 +28,10 @@
 // Layout: a LineSweep holds the voxels of one LeafOrder sign pattern laid out in that visiting
 // order (coordinates, normals, regions), so that a sweep reads everything sequentially; voxels
 // are named by their position in that order.
+//
+// The ordered walk itself (walk(): every line in both senses, in exact line order, with a state
+// per line) knows nothing of surfaces; the cloud's transfer sweeps (CloudTransfer.h) use it with
+// radiance as the state.
 #pragma once
 
 #include "vdbrad/LeafOrder.h"
@@ -51,21 +55,22 @@ public:
     static constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
     /// @brief The voxels of @a index in the visiting order @a order.
-    /// @param normals  index-space unit normals, one per voxel of @a index
+    /// @param normals  index-space unit normals, one per voxel of @a index (surfaces: sweep());
+    ///                 null for a medium, which only walk()s its lines
     /// @param depth    occlusion depth in voxels (see the file comment), > 0
     /// @param regions  per voxel of @a index, the air region it faces (Enclosure.h); null: one
     LineSweep(const VoxelIndex& index, const LeafOrder& order,
-        const std::vector<openvdb::Vec3f>& normals, LineType lines, float depth = 1.f,
+        const std::vector<openvdb::Vec3f>* normals, LineType lines, float depth = 1.f,
         const std::vector<uint32_t>* regions = nullptr)
         : mSigns(order.signs()), mLines(lines), mDepth(depth)
     {
         const std::vector<uint32_t>& seq = order.voxels();
         mCoords.resize(seq.size());
-        mNormals.resize(seq.size());
+        if (normals) mNormals.resize(seq.size());
         if (regions) mRegions.resize(seq.size());
         for (size_t k = 0; k < seq.size(); ++k) {
             mCoords[k] = index.coord(seq[k]);
-            mNormals[k] = normals[seq[k]];
+            if (normals) mNormals[k] = (*normals)[seq[k]];
             if (regions) mRegions[k] = (*regions)[seq[k]];
         }
         const openvdb::CoordBBox box = index.bbox();
@@ -75,6 +80,8 @@ public:
 
     size_t size() const { return mCoords.size(); }
     const LeafOrder::Signs& signs() const { return mSigns; }
+    /// Coordinate of the voxel at position @a x of this sweep's order.
+    const openvdb::Coord& coord(uint32_t x) const { return mCoords[x]; }
 
     /// What a line carries to the next voxel: the last voxel met (its position, top bit set if
     /// it was a sender), the region of the voxel a receiver sees (kNone: it sees nothing) and a
@@ -88,41 +95,38 @@ public:
         PayloadT payload{};
     };
 
-    /// Per-thread scratch memory, reused from one direction to the next.
-    template<typename PayloadT>
-    struct Workspace
+    /// Per-thread scratch memory, reused from one direction to the next; StateT is what each
+    /// line carries from voxel to voxel.
+    template<typename StateT>
+    struct Lanes
     {
         std::vector<uint32_t> slots;     // line slot of the k-th visited voxel (pass 1 -> pass 2)
         // Bubbles (standard lines): pairs (k, k') of consecutive voxels of one line met in the
         // wrong order (k < k' in visiting order, k' first along the line), sorted by k' and by k.
         std::vector<std::pair<uint32_t, uint32_t>> bubblesByLater, bubblesByEarlier;
         std::vector<uint32_t> lastOnLine;                    // scratch for finding them
-        std::vector<Front<PayloadT>> fronts;
+        std::vector<StateT> fronts;
         std::unordered_map<LineKey, uint32_t, LineKeyHash> ids;   // sparse scenes only
     };
+    template<typename PayloadT>
+    using Workspace = Lanes<Front<PayloadT>>;
 
-    /// @brief Report, for every voxel x that faces sigma or -sigma, what it sees:
-    /// visit(x, seen, sigmaDotN) with x a position in this sweep's order, seen a pointer to
-    /// load(y) for the voxel y it sees (null if it sees nothing) and sigmaDotN = sigma . n_x
-    /// (> 0: x looks along +sigma, < 0: along -sigma). load(k) is called once per sender and
-    /// pass, in visiting order. Sequential: run one direction per thread, each thread with its
-    /// own @a work.
-    /// @param reversed  as returned by LeafOrder::baseSigns(sigma, reversed), whose signs must
-    ///                  be this sweep's
-    template<typename PayloadT, typename LoadT, typename VisitT>
-    void sweep(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work,
-        LoadT&& load, VisitT&& visit) const
+    /// @brief Walk every line of sigma in both senses, in exact line order: first along +sigma
+    /// (@a forward true), then along -sigma, calling step(x, state, forward) for every voxel x
+    /// (a position in this sweep's order) with the state its line carries, which each pass
+    /// starts as StateT() and step() updates. endOfPass(fronts, forward) then sees every line's
+    /// final state (what leaves the last voxel). Sequential, like sweep().
+    template<typename StateT, typename StepT, typename EndT>
+    void walk(const openvdb::Coord& sigma, bool reversed, Lanes<StateT>& work, StepT&& step,
+        EndT&& endOfPass) const
     {
         const size_t n = mCoords.size();
         const size_t lines = assignLines(sigma, reversed, work);
         auto along = [&](size_t k) { return uint32_t(reversed ? n - 1 - k : k); };
-        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
-        for (float travel : {1.f, -1.f}) {
-            work.fronts.assign(lines, Front<PayloadT>());
-            const openvdb::Vec3f t = s * travel;
+        for (const bool forward : {true, false}) {
+            work.fronts.assign(lines, StateT());
             // Bubbles: each pass skips the voxel of a pair it meets first and visits it right
             // after its partner. Cursors count pairs from the pass's start.
-            const bool forward = travel > 0.f;
             const auto& skips = forward ? work.bubblesByEarlier : work.bubblesByLater;
             const auto& replays = forward ? work.bubblesByLater : work.bubblesByEarlier;
             auto nth = [&](const auto& pairs, size_t i) -> const std::pair<uint32_t, uint32_t>& {
@@ -139,15 +143,14 @@ public:
                             if ((forward ? b.first : b.second) == k) { ++skip; continue; }
                         }
                     }
-                    step(along(k), work.fronts[work.slots[k]], t, travel, load, visit);
+                    step(along(k), work.fronts[work.slots[k]], forward);
                     if constexpr (decltype(repair)::value) {
                         if (replay < replays.size()) {
                             const auto& b = nth(replays, replay);
                             if ((forward ? b.second : b.first) == k) {
                                 ++replay;
                                 const uint32_t held = forward ? b.first : b.second;
-                                step(along(held), work.fronts[work.slots[held]], t, travel, load,
-                                    visit);
+                                step(along(held), work.fronts[work.slots[held]], forward);
                             }
                         }
                     }
@@ -155,7 +158,29 @@ public:
             };
             if (skips.empty()) pass(std::false_type());
             else pass(std::true_type());
+            endOfPass(static_cast<const std::vector<StateT>&>(work.fronts), forward);
         }
+    }
+
+    /// @brief Report, for every voxel x that faces sigma or -sigma, what it sees:
+    /// visit(x, seen, sigmaDotN) with x a position in this sweep's order, seen a pointer to
+    /// load(y) for the voxel y it sees (null if it sees nothing) and sigmaDotN = sigma . n_x
+    /// (> 0: x looks along +sigma, < 0: along -sigma). load(k) is called once per sender and
+    /// pass, in visiting order. Sequential: run one direction per thread, each thread with its
+    /// own @a work.
+    /// @param reversed  as returned by LeafOrder::baseSigns(sigma, reversed), whose signs must
+    ///                  be this sweep's
+    template<typename PayloadT, typename LoadT, typename VisitT>
+    void sweep(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work,
+        LoadT&& load, VisitT&& visit) const
+    {
+        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
+        walk(sigma, reversed, work,
+            [&](uint32_t x, Front<PayloadT>& front, bool forward) {
+                const float travel = forward ? 1.f : -1.f;
+                this->step(x, front, s * travel, travel, load, visit);
+            },
+            [](const std::vector<Front<PayloadT>>&, bool) {});
     }
 
     /// @brief The same report as sweep(), built the way the thesis does (§6.2.1.1): a stable
@@ -203,8 +228,8 @@ private:
     static constexpr uint32_t kSender = 0x80000000u;   // positions are < 2^31 (VoxelIndex)
 
     /// Fill work.slots (the line of the k-th voxel along +sigma) and return the number of lines.
-    template<typename PayloadT>
-    size_t assignLines(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work) const
+    template<typename StateT>
+    size_t assignLines(const openvdb::Coord& sigma, bool reversed, Lanes<StateT>& work) const
     {
         LinePartition partition(sigma, mLines);
         // Centred on the scene so that a symmetric scene gets symmetric lines.

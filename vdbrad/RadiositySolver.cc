@@ -277,16 +277,13 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     const size_t dirs = mDirections.size(), n = scene.size();
 
     Impl& impl = *mImpl;
-    impl.reversed.resize(dirs);
+    LeafOrder::Patterns dealt = LeafOrder::patterns(dirs,
+        [&](size_t k) { return mDirections.direction(k); });
+    impl.reversed = std::move(dealt.reversed);
+    for (size_t p = 0; p < 4; ++p) impl.patterns[p].directions = std::move(dealt.directions[p]);
+    const std::array<LeafOrder::Signs, 4>& signsOf = dealt.signs;
     impl.coefficient.resize(dirs);
-    std::array<LeafOrder::Signs, 4> signsOf;
     for (size_t k = 0; k < dirs; ++k) {
-        bool rev = false;
-        const LeafOrder::Signs signs = LeafOrder::baseSigns(mDirections.direction(k), rev);
-        const size_t p = size_t((signs[1] < 0 ? 2 : 0) + (signs[2] < 0 ? 1 : 0));
-        signsOf[p] = signs;
-        impl.patterns[p].directions.push_back(k);
-        impl.reversed[k] = rev ? 1 : 0;
         const openvdb::Coord& d = mDirections.direction(k);
         impl.coefficient[k] = float(mDirections.factor(k) / openvdb::Vec3d(d.asVec3d()).length());
     }
@@ -322,7 +319,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         pattern.position.resize(n);
         for (size_t k = 0; k < n; ++k) pattern.position[pattern.order[k]] = uint32_t(k);
         if (options.visibility == Visibility::Sweep) {
-            pattern.sweep.reset(new LineSweep(scene.voxels(), order, scene.normals(),
+            pattern.sweep.reset(new LineSweep(scene.voxels(), order, &scene.normals(),
                 options.lines, options.occlusionDepth,
                 impl.regions.cavities > 0 ? &impl.regions.region : nullptr));
         }

@@ -1,0 +1,476 @@
+#include "vdbrad/CloudTransfer.h"
+
+#include "vdbrad/Errors.h"
+#include "vdbrad/LeafOrder.h"
+#include "vdbrad/LineSweep.h"
+#include "vdbrad/OutputGrids.h"
+#include "vdbrad/SolarBeam.h"
+#include "vdbrad/Version.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+
+namespace vdbrad {
+
+namespace {
+
+using openvdb::Coord;
+using openvdb::Vec3d;
+
+constexpr double kPi = 3.14159265358979323846;
+// Periodic boundaries: wrap-around passes per direction and iteration before the rest of the
+// wrapping light is carried over to the next iteration.
+constexpr int kMaxWraps = 64;
+
+// Across a step of optical depth tau: the transmittance e^-tau and the mean factor
+// (1 - e^-tau) / tau, with one exponential, and without cancellation for thin voxels.
+inline void
+stepFactors(float tau, float& transmit, float& mean)
+{
+    if (tau > 1e-3f) {
+        const double e = std::exp(-double(tau));
+        transmit = float(e);
+        mean = float((1.0 - e) / double(tau));
+    } else {
+        // Series to tau^3: relative error below 1e-12 here.
+        transmit = 1.f - tau * (1.f - 0.5f * tau * (1.f - tau / 3.f));
+        mean = 1.f - 0.5f * tau * (1.f - tau / 3.f * (1.f - 0.25f * tau));
+    }
+}
+
+// What a line carries: its radiance, whether it has met its first voxel yet (periodic boundaries
+// give that voxel the light re-entering the box) and the last voxel it met (where it leaves).
+struct Ray
+{
+    float radiance = 0.f;
+    bool started = false;
+    uint32_t last = 0;
+};
+
+// The side face a ray through index point p along unit t crosses first going backwards (-t)
+// (entering) or forwards (+t) (leaving), over the box [lo, hi]: 2 * axis + (0: low, 1: high), or
+// -1 if it is the top or bottom; and the up coordinate of the crossing.
+int
+crossedSide(const Vec3d& p, const Vec3d& t, const Vec3d& lo, const Vec3d& hi, int up,
+    double& height)
+{
+    double best = 1e300;
+    int face = -1;
+    for (int k = 0; k < 3; ++k) {
+        if (t[k] == 0.0) continue;
+        const double bound = t[k] > 0.0 ? hi[k] : lo[k];
+        const double s = (bound - p[k]) / t[k];
+        if (s < best) {
+            best = s;
+            face = 2 * k + (t[k] > 0.0 ? 1 : 0);
+        }
+    }
+    height = p[up] + best * t[up];
+    return face / 2 == up ? -1 : face;
+}
+
+} // namespace
+
+struct CloudTransfer::Impl
+{
+    static constexpr int kGroups = 8;   // fixed: results do not depend on the thread count
+
+    size_t n = 0;
+    std::vector<float> kappa;        // optical depth per voxel length
+    std::vector<float> omega;        // single-scattering albedo
+    std::vector<float> beamJ;        // mean radiance of the direct beam, D / (4 pi kappa)
+    std::vector<double> deposited;   // beam power lost per voxel
+    double incident = 0.0, directOut = 0.0;
+    std::vector<float> diffuseJ;     // diffuse mean radiance of the last sweep
+
+    struct Pattern
+    {
+        std::vector<size_t> directions;
+        std::vector<uint32_t> order;     // voxel index of the k-th visited voxel
+        std::vector<float> kappa;        // in visiting order
+        std::unique_ptr<LineSweep> sweep;
+    };
+    std::array<Pattern, 4> patterns;
+    std::vector<char> reversed;
+
+    // Periodic boundaries, per direction and sense: power that left each side face per voxel
+    // layer in the last sweep, and how many lines enter through each side face per layer.
+    Vec3d lo, hi;
+    int layers = 0, layer0 = 0;
+    int up = 1;
+    std::vector<double> leftFace;    // [dir][sense][face 0..5][layer]: power carried over
+    std::vector<uint32_t> enterCount;
+    size_t faceIndex(size_t dir, int sense, int face, int layer) const
+    {
+        return ((dir * 2 + size_t(sense)) * 6 + size_t(face)) * size_t(layers) + size_t(layer);
+    }
+    int layerOf(double height) const
+    {
+        return std::clamp(int(std::floor(height + 0.5)) - layer0, 0, layers - 1);
+    }
+    // Slot (within a direction's slice) of the side face and layer a line whose first voxel is
+    // at p enters through, light travelling along t; -1: it enters through the top or bottom.
+    int entrySlot(const Vec3d& p, const Vec3d& t, bool forward) const
+    {
+        double height = 0.0;
+        const int face = crossedSide(p, -t, lo, hi, up, height);
+        return face < 0 ? -1 : ((forward ? 0 : 1) * 6 + face) * layers + layerOf(height);
+    }
+    // Likewise for the face a line whose last voxel is at p leaves through.
+    int exitSlot(const Vec3d& p, const Vec3d& t, bool forward) const
+    {
+        double height = 0.0;
+        const int face = crossedSide(p, t, lo, hi, up, height);
+        return face < 0 ? -1 : ((forward ? 0 : 1) * 6 + face) * layers + layerOf(height);
+    }
+    // The slot light leaving through slot e re-enters by: the opposite face, same sense, layer.
+    size_t oppositeSlot(size_t e) const
+    {
+        const size_t layer = e % size_t(layers), sf = e / size_t(layers);
+        return ((sf / 6) * 6 + ((sf % 6) ^ 1)) * size_t(layers) + layer;
+    }
+
+    // Directions of group g: pattern g / 2, every other one.
+    template<typename F>
+    void forDirections(int g, F&& f) const
+    {
+        const Pattern& p = patterns[size_t(g / 2)];
+        for (size_t i = size_t(g % 2); i < p.directions.size(); i += 2) f(p.directions[i]);
+    }
+};
+
+CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+    : mCloud(cloud), mOptions(options), mImpl(new Impl)
+{
+    const auto start = std::chrono::steady_clock::now();
+    if (options.maxIterations < 1) {
+        OPENVDB_THROW(openvdb::ValueError, "iterations must be >= 1, got " << options.maxIterations);
+    }
+    if (!(options.tolerance >= 0.0)) OPENVDB_THROW(openvdb::ValueError, "tolerance must be >= 0");
+    if (!(options.sunZenith >= 0.0 && options.sunZenith <= 89.9)) {
+        OPENVDB_THROW(openvdb::ValueError, "sun zenith angle must be in [0, 89.9] degrees, got "
+            << options.sunZenith);
+    }
+    if (!std::isfinite(options.sunAzimuth)) {
+        OPENVDB_THROW(openvdb::ValueError, "sun azimuth must be finite");
+    }
+    if (options.up < 0 || options.up > 2) OPENVDB_THROW(openvdb::ValueError, "up must be 0, 1 or 2");
+    if (cloud.albedo().isRgb()) {
+        OPENVDB_THROW(openvdb::ValueError, "RGB single-scattering albedo is not supported yet; "
+            "give a float albedo grid");
+    }
+    mDirections = DirectionSet::fromCount(options.directions);
+    Impl& impl = *mImpl;
+    const size_t n = impl.n = cloud.size();
+    const double h = cloud.voxelSize();
+    impl.kappa.resize(n);
+    impl.omega.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+        const double k = double(cloud.extinction(i)) * h;
+        if (!std::isfinite(k)) {
+            OPENVDB_THROW(openvdb::ValueError, "voxel optical depth overflows (extinction "
+                << cloud.extinction(i) << " per unit, voxel size " << h << ")");
+        }
+        impl.kappa[i] = float(k);
+        impl.omega[i] = cloud.albedo().grey(i);
+    }
+
+    // The sun, in index space (the transform is a uniform scale plus rotation: world
+    // directions map to index directions by the inverse Jacobian).
+    const int up = options.up, a1 = (up + 1) % 3, a2 = (up + 2) % 3;
+    // Horizontal axes in the documented order: up y -> (x, z), up z -> (x, y), up x -> (y, z).
+    const int first = std::min(a1, a2), second = std::max(a1, a2);
+    const double zen = options.sunZenith * kPi / 180.0, az = options.sunAzimuth * kPi / 180.0;
+    Vec3d toSunWorld(0.0);
+    toSunWorld[up] = std::cos(zen);
+    toSunWorld[first] = std::sin(zen) * std::cos(az);
+    toSunWorld[second] = std::sin(zen) * std::sin(az);
+    const Vec3d toSun = cloud.transform().baseMap()->applyInverseJacobian(toSunWorld);
+    if (interrupt) interrupt->start("solar beam");
+    SolarBeamResult beam = traceSolarBeam(cloud.voxels(), impl.kappa, toSun, up, options.periodic,
+        options.beamRaysPerVoxel, options.irradiance, interrupt);
+    if (interrupt) interrupt->end();
+    impl.incident = beam.incident;
+    impl.directOut = beam.transmitted;
+    impl.deposited = std::move(beam.deposited);
+    impl.beamJ.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+        impl.beamJ[i] = impl.kappa[i] > 0.f
+            ? float(impl.deposited[i] / (4.0 * kPi * double(impl.kappa[i]))) : 0.f;
+    }
+    impl.diffuseJ.assign(n, 0.f);
+
+    // Sweep orders: one per base sign pattern, naive lines (their steps have exact lengths).
+    const size_t dirs = mDirections.size();
+    LeafOrder::Patterns dealt = LeafOrder::patterns(dirs,
+        [&](size_t k) { return mDirections.direction(k); });
+    impl.reversed = std::move(dealt.reversed);
+    for (size_t p = 0; p < 4; ++p) {
+        Impl::Pattern& pattern = impl.patterns[p];
+        pattern.directions = std::move(dealt.directions[p]);
+        if (pattern.directions.empty()) continue;
+        const LeafOrder order(cloud.voxels(), dealt.signs[p]);
+        pattern.order = order.voxels();
+        pattern.kappa.resize(n);
+        for (size_t k = 0; k < n; ++k) pattern.kappa[k] = impl.kappa[pattern.order[k]];
+        pattern.sweep.reset(new LineSweep(cloud.voxels(), order, nullptr, LineType::Naive));
+    }
+    const openvdb::CoordBBox box = cloud.voxels().bbox();
+    impl.lo = box.min().asVec3d() - Vec3d(0.5);
+    impl.hi = box.max().asVec3d() + Vec3d(0.5);
+    impl.up = up;
+    if (options.periodic) {
+        impl.layer0 = box.min()[up];
+        impl.layers = box.max()[up] - box.min()[up] + 1;
+        impl.leftFace.assign(dirs * 2 * 6 * size_t(impl.layers), 0.0);
+        impl.enterCount.assign(impl.leftFace.size(), 0);
+        // How many lines enter through each side face per layer: geometry only, one walk per
+        // direction (each direction counts into its own slice: no races).
+        tbb::parallel_for(tbb::blocked_range<int>(0, Impl::kGroups, 1),
+            [&](const tbb::blocked_range<int>& r) {
+                for (int g = r.begin(); g != r.end(); ++g) {
+                    const Impl::Pattern& pattern = impl.patterns[size_t(g / 2)];
+                    if (pattern.directions.empty()) continue;
+                    LineSweep::Lanes<Ray> lanes;
+                    impl.forDirections(g, [&](size_t d) {
+                        const Vec3d unit = mDirections.unit(d);
+                        const size_t slice = impl.faceIndex(d, 0, 0, 0);
+                        pattern.sweep->walk(mDirections.direction(d), impl.reversed[d] != 0, lanes,
+                            [&](uint32_t x, Ray& ray, bool forward) {
+                                if (ray.started) return;
+                                ray.started = true;
+                                const int at = impl.entrySlot(pattern.sweep->coord(x).asVec3d(),
+                                    forward ? unit : -unit, forward);
+                                if (at >= 0) ++impl.enterCount[slice + size_t(at)];
+                            },
+                            [](const std::vector<Ray>&, bool) {});
+                    });
+                }
+            });
+    }
+    mSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+CloudTransfer::~CloudTransfer() = default;
+
+bool
+CloudTransfer::converged() const
+{
+    return !mResiduals.empty() && mResiduals.back() <= mOptions.tolerance;
+}
+
+double
+CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    Impl& impl = *mImpl;
+    const size_t n = impl.n;
+    const int up = mOptions.up;
+    const bool periodic = mOptions.periodic;
+
+    // Isotropic source: omega0 times the total mean radiance of the last sweep.
+    std::vector<float> source(n);
+    for (size_t i = 0; i < n; ++i) source[i] = impl.omega[i] * (impl.diffuseJ[i] + impl.beamJ[i]);
+
+    std::array<std::vector<float>, Impl::kGroups> gathered;
+    std::array<std::array<double, 2>, Impl::kGroups> escaped{};   // [group][0 down, 1 up]
+    std::vector<double> leftNow(impl.leftFace.size(), 0.0);
+    std::atomic<bool> cancelled{false};
+    std::atomic<size_t> done{0};
+    const size_t dirs = mDirections.size();
+
+    tbb::parallel_for(tbb::blocked_range<int>(0, Impl::kGroups, 1),
+        [&](const tbb::blocked_range<int>& r) {
+            for (int g = r.begin(); g != r.end(); ++g) {
+                const Impl::Pattern& pattern = impl.patterns[size_t(g / 2)];
+                if (pattern.directions.empty()) continue;
+                std::vector<float> S(n);
+                for (size_t k = 0; k < n; ++k) S[k] = source[pattern.order[k]];
+                std::vector<float>& G = gathered[size_t(g)];
+                G.assign(n, 0.f);
+                LineSweep::Lanes<Ray> lanes;
+                impl.forDirections(g, [&](size_t d) {
+                    if (cancelled.load(std::memory_order_relaxed)) return;
+                    const Coord& sigma = mDirections.direction(d);
+                    const Vec3d unit = mDirections.unit(d);
+                    const int major = std::abs(sigma.x()) >= std::abs(sigma.y())
+                        ? (std::abs(sigma.x()) >= std::abs(sigma.z()) ? 0 : 2)
+                        : (std::abs(sigma.y()) >= std::abs(sigma.z()) ? 1 : 2);
+                    // A naive line's step, in voxels, and its tube's etendue (cross-section
+                    // 1 / step voxel faces times the solid angle of one orientation).
+                    const float step = float(sigma.asVec3d().length() / std::abs(sigma[major]));
+                    const float omega = float(kPi * mDirections.factor(d));
+                    const double etendue = double(omega) / double(step);
+                    const size_t slice = impl.faceIndex(d, 0, 0, 0);
+                    const size_t sliceSize = size_t(2 * 6 * impl.layers);
+                    // Periodic: power entering each side face per layer (what left the opposite
+                    // face), and what leaves this pass.
+                    std::vector<double> entry, exits(sliceSize, 0.0);
+                    if (periodic) {
+                        entry.assign(impl.leftFace.begin() + long(slice),
+                            impl.leftFace.begin() + long(slice + sliceSize));
+                    }
+                    auto pass = [&](bool sources) {
+                        std::fill(exits.begin(), exits.end(), 0.0);
+                        pattern.sweep->walk(sigma, impl.reversed[d] != 0, lanes,
+                            [&](uint32_t x, Ray& ray, bool forward) {
+                                if (!ray.started) {
+                                    ray.started = true;
+                                    if (periodic) {
+                                        const Vec3d t = forward ? unit : -unit;
+                                        const int at = impl.entrySlot(
+                                            pattern.sweep->coord(x).asVec3d(), t, forward);
+                                        if (at >= 0) {
+                                            const uint32_t c = impl.enterCount[slice + size_t(at)];
+                                            ray.radiance = float(entry[size_t(at)] / c / etendue);
+                                        }
+                                    }
+                                }
+                                ray.last = x;
+                                float transmit, mean;
+                                stepFactors(pattern.kappa[x] * step, transmit, mean);
+                                const float s = sources ? S[x] : 0.f;
+                                G[x] += omega * (s + (ray.radiance - s) * mean);
+                                ray.radiance = s + (ray.radiance - s) * transmit;
+                            },
+                            [&](const std::vector<Ray>& fronts, bool forward) {
+                                const Vec3d t = forward ? unit : -unit;
+                                for (const Ray& ray : fronts) {
+                                    if (!ray.started || ray.radiance == 0.f) continue;
+                                    const double p = double(ray.radiance) * etendue;
+                                    if (periodic) {
+                                        const int at = impl.exitSlot(
+                                            pattern.sweep->coord(ray.last).asVec3d(), t, forward);
+                                        if (at >= 0) { exits[size_t(at)] += p; continue; }
+                                    }
+                                    if (t[up] == 0.0) {
+                                        escaped[size_t(g)][0] += 0.5 * p;
+                                        escaped[size_t(g)][1] += 0.5 * p;
+                                    } else {
+                                        escaped[size_t(g)][t[up] > 0.0 ? 1 : 0] += p;
+                                    }
+                                }
+                            });
+                        if (!periodic) return 0.0;
+                        // What left a side face enters through the opposite one at the same
+                        // height, unless no line enters there: then it has left for good.
+                        double transit = 0.0;
+                        for (size_t e = 0; e < sliceSize; ++e) {
+                            entry[e] = 0.0;
+                        }
+                        for (size_t e = 0; e < sliceSize; ++e) {
+                            if (exits[e] == 0.0) continue;
+                            const size_t to = impl.oppositeSlot(e);
+                            if (impl.enterCount[slice + to] > 0) {
+                                entry[to] += exits[e];
+                                transit += exits[e];
+                            } else {
+                                const double tUp = e < sliceSize / 2 ? unit[up] : -unit[up];
+                                escaped[size_t(g)][tUp > 0.0 ? 1 : 0] += exits[e];
+                            }
+                        }
+                        return transit;
+                    };
+                    // First the sources and the light carried over from the last iteration;
+                    // then the light wrapping around the period is followed at once, pass after
+                    // pass, until what still wraps is negligible; the rest is carried over.
+                    double transit = pass(true);
+                    const double first = transit;
+                    for (int wrap = 0; periodic && wrap < kMaxWraps
+                         && transit > 1e-9 * first && transit > 0.0; ++wrap) {
+                        transit = pass(false);
+                    }
+                    if (periodic) {
+                        std::copy(entry.begin(), entry.end(), leftNow.begin() + long(slice));
+                    }
+                    const size_t k = ++done;
+                    if (interrupt && interrupt->wasInterrupted(int(100 * k / dirs))) {
+                        cancelled = true;
+                    }
+                });
+            }
+        });
+    if (cancelled) throw Cancelled("cloud transfer");
+
+    // J from the groups, in a fixed order (bit-identical for any thread count).
+    std::vector<double> sum(n, 0.0);
+    for (int g = 0; g < Impl::kGroups; ++g) {
+        const std::vector<float>& G = gathered[size_t(g)];
+        if (G.empty()) continue;
+        const std::vector<uint32_t>& order = impl.patterns[size_t(g / 2)].order;
+        for (size_t k = 0; k < n; ++k) sum[order[k]] += double(G[k]);
+    }
+    double maxChange = 0.0, maxJ = 0.0, absorbed = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        const float J = float(sum[i] / (4.0 * kPi));
+        maxChange = std::max(maxChange, double(std::abs(J - impl.diffuseJ[i])));
+        maxJ = std::max(maxJ, double(J + impl.beamJ[i]));
+        impl.diffuseJ[i] = J;
+        // Extinguished here: the beam's deposit and, per unit volume, 4 pi kappa J.
+        absorbed += double(1.f - impl.omega[i])
+            * (impl.deposited[i] + 4.0 * kPi * double(impl.kappa[i]) * double(J));
+    }
+
+    if (periodic) impl.leftFace.swap(leftNow);
+    double up0 = 0.0, down0 = 0.0;
+    for (const auto& e : escaped) { down0 += e[0]; up0 += e[1]; }
+    const double in = impl.incident > 0.0 ? impl.incident : 1.0;
+    mBudget.incident = impl.incident;
+    mBudget.albedo = up0 / in;
+    mBudget.transmittance = (down0 + impl.directOut) / in;
+    mBudget.directTransmittance = impl.directOut / in;
+    mBudget.absorptance = absorbed / in;
+
+    const double residual = maxJ > 0.0 ? maxChange / maxJ : 0.0;
+    mResiduals.push_back(residual);
+    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return residual;
+}
+
+void
+CloudTransfer::solve(openvdb::util::NullInterrupter* interrupt)
+{
+    while (!converged() && iterationCount() < mOptions.maxIterations) iterate(interrupt);
+}
+
+std::vector<float>
+CloudTransfer::meanIntensity() const
+{
+    std::vector<float> J(mImpl->n);
+    for (size_t i = 0; i < J.size(); ++i) J[i] = mImpl->diffuseJ[i] + mImpl->beamJ[i];
+    return J;
+}
+
+openvdb::GridBase::Ptr
+CloudTransfer::grid(const std::string& name) const
+{
+    openvdb::FloatGrid::Ptr g = arrayToGrid(mCloud.voxels(), meanIntensity(), mCloud.transform(),
+        name);
+    g->insertMeta("vdbrad:albedo", openvdb::FloatMetadata(float(mBudget.albedo)));
+    g->insertMeta("vdbrad:transmittance", openvdb::FloatMetadata(float(mBudget.transmittance)));
+    g->insertMeta("vdbrad:absorptance", openvdb::FloatMetadata(float(mBudget.absorptance)));
+    g->insertMeta(meta::kIterations, openvdb::Int32Metadata(iterationCount()));
+    g->insertMeta(meta::kResidual, openvdb::FloatMetadata(
+        mResiduals.empty() ? 0.f : float(mResiduals.back())));
+    g->insertMeta(meta::kDirections, openvdb::Int32Metadata(int(mDirections.size())));
+    g->insertMeta(meta::kSeconds, openvdb::FloatMetadata(float(mSeconds)));
+    g->insertMeta(meta::kVersion, openvdb::StringMetadata(VDBRAD_VERSION_STRING));
+    return g;
+}
+
+openvdb::GridBase::Ptr
+solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    CloudTransfer transfer(cloud, options, interrupt);
+    transfer.solve(interrupt);
+    return transfer.grid();
+}
+
+} // namespace vdbrad

@@ -1,0 +1,207 @@
+#include "vdbrad/SolarBeam.h"
+
+#include "vdbrad/Errors.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <cmath>
+#include <limits>
+
+namespace vdbrad {
+
+namespace {
+
+using openvdb::Coord;
+using openvdb::Vec3d;
+
+// Deposits are added up in fixed point (units of one ray's power, 2^-40 resolution): integer
+// sums do not depend on the order threads add them in, so the result is the same bits for any
+// thread count, and each ray's deposits plus what it keeps still add up to its power to 1e-12.
+constexpr double kFixed = 1099511627776.0;   // 2^40
+
+struct Marcher
+{
+    const VoxelIndex& voxels;
+    const std::vector<float>& depth;
+    std::vector<std::atomic<int64_t>>& deposited;
+    Coord lo, hi;         // the voxels' bounding box (index)
+    int up;
+    bool periodic;
+
+    // March the ray o + t d (index space, unit d) from t0 to t1, or, periodic, until it leaves
+    // the box downwards; returns the fraction of the ray's power that is left (fixed point).
+    int64_t march(const Vec3d& o, const Vec3d& d, double t0, double t1,
+        VoxelIndex::Accessor& acc) const
+    {
+        int64_t left = int64_t(kFixed);
+        double kept = 1.0;   // transmittance so far, in double; deposits are its decrements
+        Vec3d p = o + d * t0;
+        Coord cell;
+        Vec3d next, delta;
+        int stepOf[3];
+        for (int k = 0; k < 3; ++k) {
+            cell[k] = int(std::floor(p[k] + 0.5));
+            // The entry point lies on a cube face: nudge the cell along the ray, so the first
+            // cell is the one the ray enters, not the one it leaves.
+            if (std::abs(p[k] + 0.5 - std::round(p[k] + 0.5)) < 1e-9) {
+                cell[k] = int(std::round(p[k] + 0.5)) - (d[k] < 0.0 ? 1 : 0);
+            }
+            stepOf[k] = d[k] > 0.0 ? 1 : (d[k] < 0.0 ? -1 : 0);
+            const double boundary = cell[k] + 0.5 * stepOf[k];
+            next[k] = stepOf[k] != 0 ? t0 + (boundary - p[k]) / d[k]
+                                     : std::numeric_limits<double>::infinity();
+            delta[k] = stepOf[k] != 0 ? 1.0 / std::abs(d[k]) : 0.0;
+        }
+        const int h1 = (up + 1) % 3, h2 = (up + 2) % 3;
+        const int period1 = hi[h1] - lo[h1] + 1, period2 = hi[h2] - lo[h2] + 1;
+        double t = t0;
+        while (left > 0) {
+            const int axis = next[0] <= next[1] ? (next[0] <= next[2] ? 0 : 2)
+                                                : (next[1] <= next[2] ? 1 : 2);
+            const double tExit = periodic ? next[axis] : std::min(next[axis], t1);
+            if (cell[up] < lo[up]) break;   // below the box: the rest is transmitted
+            Coord at = cell;
+            if (periodic) {
+                at[h1] = lo[h1] + (((cell[h1] - lo[h1]) % period1) + period1) % period1;
+                at[h2] = lo[h2] + (((cell[h2] - lo[h2]) % period2) + period2) % period2;
+            }
+            const int32_t i = acc.getValue(at);
+            if (i >= 0 && tExit > t) {
+                const double tau = double(depth[size_t(i)]) * (tExit - t);
+                const double after = kept * std::exp(-tau);
+                // Fixed-point share of this voxel; a ray whose power is spent deposits the rest
+                // here, so nothing is lost to rounding or underflow.
+                int64_t share = int64_t(std::llround((kept - after) * kFixed));
+                if (after * kFixed < 1.0 || share > left) share = left;
+                if (share > 0) {
+                    deposited[size_t(i)].fetch_add(share, std::memory_order_relaxed);
+                    left -= share;
+                }
+                kept = after;
+            }
+            if (!periodic && tExit >= t1) break;
+            t = next[axis];
+            next[axis] += delta[axis];
+            cell[axis] += stepOf[axis];
+        }
+        return left;
+    }
+};
+
+} // namespace
+
+SolarBeamResult
+traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
+    const Vec3d& toSun, int up, bool periodic, int raysPerVoxel, double irradiance,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    if (up < 0 || up > 2) OPENVDB_THROW(openvdb::ValueError, "up axis must be 0, 1 or 2");
+    if (opticalDepth.size() != voxels.size()) {
+        OPENVDB_THROW(openvdb::ValueError, "one optical depth per voxel expected");
+    }
+    if (raysPerVoxel < 1 || raysPerVoxel > 64) {
+        OPENVDB_THROW(openvdb::ValueError, "rays per voxel must be in [1, 64]");
+    }
+    if (!(irradiance >= 0.0) || !std::isfinite(irradiance)) {
+        OPENVDB_THROW(openvdb::ValueError, "irradiance must be finite and >= 0");
+    }
+    const double len = toSun.length();
+    if (!(len > 0.0) || !std::isfinite(len) || !(toSun[up] / len > 1e-3)) {
+        OPENVDB_THROW(openvdb::ValueError, "the sun must be above the horizon (elevation > 0.06 "
+            "degrees)");
+    }
+    SolarBeamResult result;
+    const size_t n = voxels.size();
+    if (n == 0) return result;
+    const Vec3d d = -toSun / len;   // propagation
+    const openvdb::CoordBBox box = voxels.bbox();
+    const Vec3d lo = box.min().asVec3d() - Vec3d(0.5), hi = box.max().asVec3d() + Vec3d(0.5);
+    std::vector<std::atomic<int64_t>> deposited(n);
+    const Marcher marcher{voxels, opticalDepth, deposited, box.min(), box.max(), up, periodic};
+    const double spacing = 1.0 / raysPerVoxel;
+
+    // The ray grid: on the top face (periodic), or on the plane normal to the beam over the
+    // box's shadow (open). Each ray stands for a patch of the beam's cross-section of area
+    // `area` (voxel faces).
+    Vec3d origin, e1, e2;
+    int rows = 0, cols = 0;
+    double area = 0.0;
+    if (periodic) {
+        const int h1 = (up + 1) % 3, h2 = (up + 2) % 3;
+        e1 = Vec3d(0.0); e1[h1] = spacing;
+        e2 = Vec3d(0.0); e2[h2] = spacing;
+        cols = int(std::lround((hi[h1] - lo[h1]) * raysPerVoxel));
+        rows = int(std::lround((hi[h2] - lo[h2]) * raysPerVoxel));
+        origin = lo;
+        origin[up] = hi[up];
+        origin += 0.5 * (e1 + e2);
+        area = spacing * spacing * std::abs(d[up]);
+    } else {
+        // Orthonormal axes of the cross-section, and the shadow's extent along them.
+        const Vec3d a = std::abs(d[0]) < 0.9 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0);
+        const Vec3d u = d.cross(a).unit(), v = d.cross(u);
+        double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300;
+        const Vec3d centre = 0.5 * (lo + hi);
+        for (int c = 0; c < 8; ++c) {
+            const Vec3d corner(c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]);
+            const Vec3d r = corner - centre;
+            u0 = std::min(u0, r.dot(u)); u1 = std::max(u1, r.dot(u));
+            v0 = std::min(v0, r.dot(v)); v1 = std::max(v1, r.dot(v));
+        }
+        cols = int(std::ceil((u1 - u0) * raysPerVoxel));
+        rows = int(std::ceil((v1 - v0) * raysPerVoxel));
+        e1 = u * spacing;
+        e2 = v * spacing;
+        // Start well outside the box, upstream.
+        origin = centre + u * u0 + v * v0 - d * ((hi - lo).length() + 1.0) + 0.5 * (e1 + e2);
+        area = spacing * spacing;
+    }
+
+    std::atomic<int64_t> enteredRays{0}, keptFixed{0};
+    std::atomic<bool> cancelled{false};
+    tbb::parallel_for(tbb::blocked_range<int>(0, rows), [&](const tbb::blocked_range<int>& r) {
+        if (cancelled || openvdb::util::wasInterrupted(interrupt)) { cancelled = true; return; }
+        VoxelIndex::Accessor acc(voxels.tree());
+        int64_t entered = 0, kept = 0;
+        for (int row = r.begin(); row != r.end(); ++row) {
+            for (int col = 0; col < cols; ++col) {
+                const Vec3d o = origin + e1 * double(col) + e2 * double(row);
+                double t0 = 0.0, t1 = 1e300;
+                if (!periodic) {
+                    // Slab test against the box.
+                    bool hit = true;
+                    for (int k = 0; k < 3 && hit; ++k) {
+                        if (d[k] == 0.0) {
+                            hit = o[k] >= lo[k] && o[k] <= hi[k];
+                            continue;
+                        }
+                        double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
+                        if (a > b) std::swap(a, b);
+                        t0 = std::max(t0, a);
+                        t1 = std::min(t1, b);
+                        hit = t0 < t1;
+                    }
+                    if (!hit) continue;
+                }
+                ++entered;
+                kept += marcher.march(o, d, t0, t1, acc);
+            }
+        }
+        enteredRays += entered;
+        keptFixed += kept;
+    });
+    if (cancelled) throw Cancelled("solar beam");
+
+    const double rayPower = irradiance * area;
+    result.deposited.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+        result.deposited[i] = double(deposited[i].load()) / kFixed * rayPower;
+    }
+    result.incident = double(enteredRays.load()) * rayPower;
+    result.transmitted = double(keptFixed.load()) / kFixed * rayPower;
+    return result;
+}
+
+} // namespace vdbrad
