@@ -1,0 +1,62 @@
+// The cloud sweeps on a homogeneous periodic slab (isotropic scattering, omega0, sun at the
+// zenith) against the exact slab solution (adding-doubling, tests/CloudReference.h, which shares
+// no code with the sweeps): albedo, its error, energy balance, iterations, time, and the cost per
+// voxel.direction.iteration. The slab is W x H x W voxels; periodic boundaries make it infinite.
+//
+//   build/benchmarks/bench_cloud [directions=300] [layers=20] [omega0=1] [width=8]
+#include "vdbrad/Cloud.h"
+#include "vdbrad/CloudTransfer.h"
+
+#include "../tests/CloudReference.h"
+
+#include <openvdb/openvdb.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+
+int
+main(int argc, char** argv)
+{
+    openvdb::initialize();
+    const int dirs = argc > 1 ? std::atoi(argv[1]) : 300;
+    const int layers = argc > 2 ? std::atoi(argv[2]) : 20;
+    const float omega0 = argc > 3 ? float(std::atof(argv[3])) : 1.f;
+    const int width = argc > 4 ? std::atoi(argv[4]) : 8;
+    std::printf("periodic slab %d x %d x %d, isotropic, omega0 %.3f, %d directions asked\n",
+        width, layers, width, omega0, dirs);
+    std::printf("%6s %10s %10s %8s %10s %10s %10s %6s %8s %12s\n", "tau", "albedo", "exact",
+        "error", "transmit", "absorb", "balance", "iters", "seconds", "ns/vox.dir");
+    for (double tau : {0.25, 1.0, 4.0, 10.0}) {
+        const double h = 1.0 / layers;
+        openvdb::FloatGrid::Ptr density = openvdb::FloatGrid::create(0.f);
+        density->setName("density");
+        density->setTransform(openvdb::math::Transform::createLinearTransform(h));
+        density->tree().fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(width - 1, layers - 1, width - 1)),
+            float(tau), true);
+        density->tree().voxelizeActiveTiles();
+        vdbrad::CloudOptions co;
+        co.defaultAlbedo = omega0;
+        const vdbrad::Cloud cloud = vdbrad::buildCloud({density}, co);
+        vdbrad::CloudTransferOptions o;
+        o.periodic = true;
+        o.directions = dirs;
+        o.tolerance = 1e-6;
+        o.maxIterations = 5000;
+        const auto t0 = std::chrono::steady_clock::now();
+        vdbrad::CloudTransfer transfer(cloud, o);
+        transfer.solve();
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const vdbrad::CloudBudget& b = transfer.budget();
+        vdbrad::test::SlabProblem problem;
+        problem.tau = tau;
+        problem.omega0 = omega0;
+        const double exact = vdbrad::test::addingDoublingSlab(problem).reflectance;
+        std::printf("%6.1f %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.2e %6d %8.2f %12.1f\n", tau,
+            b.albedo, exact, 100.0 * (b.albedo - exact) / exact,
+            b.transmittance, b.absorptance, b.balance(), transfer.iterationCount(), s,
+            1e9 * s / (double(cloud.size()) * double(transfer.directions().size())
+                * transfer.iterationCount()));
+    }
+    return 0;
+}
