@@ -1,9 +1,9 @@
-// The cloud sweeps on a homogeneous periodic slab (isotropic scattering, omega0, sun at the
+// The cloud sweeps on a homogeneous periodic slab (Henyey-Greenstein g, omega0, sun at the
 // zenith) against the exact slab solution (adding-doubling, tests/CloudReference.h, which shares
 // no code with the sweeps): albedo, its error, energy balance, iterations, time, and the cost per
 // voxel.direction.iteration. The slab is W x H x W voxels; periodic boundaries make it infinite.
 //
-//   build/benchmarks/bench_cloud [directions=300] [layers=20] [omega0=1] [width=8]
+//   build/benchmarks/bench_cloud [directions=300] [layers=20] [omega0=1] [width=4] [g=0] [order=8]
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -22,12 +22,14 @@ main(int argc, char** argv)
     const int dirs = argc > 1 ? std::atoi(argv[1]) : 300;
     const int layers = argc > 2 ? std::atoi(argv[2]) : 20;
     const float omega0 = argc > 3 ? float(std::atof(argv[3])) : 1.f;
-    const int width = argc > 4 ? std::atoi(argv[4]) : 8;
-    std::printf("periodic slab %d x %d x %d, isotropic, omega0 %.3f, %d directions asked\n",
-        width, layers, width, omega0, dirs);
+    const int width = argc > 4 ? std::atoi(argv[4]) : 4;
+    const double g = argc > 5 ? std::atof(argv[5]) : 0.0;
+    const int order = argc > 6 ? std::atoi(argv[6]) : 8;
+    std::printf("periodic slab %d x %d x %d, HG g %.3f (order %d), omega0 %.3f, %d directions "
+        "asked\n", width, layers, width, g, order, omega0, dirs);
     std::printf("%6s %10s %10s %8s %10s %10s %10s %6s %8s %12s\n", "tau", "albedo", "exact",
         "error", "transmit", "absorb", "balance", "iters", "seconds", "ns/vox.dir");
-    for (double tau : {0.25, 1.0, 4.0, 10.0}) {
+    for (double tau : {0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0}) {
         const double h = 1.0 / layers;
         openvdb::FloatGrid::Ptr density = openvdb::FloatGrid::create(0.f);
         density->setName("density");
@@ -43,6 +45,8 @@ main(int argc, char** argv)
         o.directions = dirs;
         o.tolerance = 1e-6;
         o.maxIterations = 5000;
+        o.phase = vdbrad::PhaseFunction::henyeyGreenstein(g);
+        o.phaseOrder = order;
         const auto t0 = std::chrono::steady_clock::now();
         vdbrad::CloudTransfer transfer(cloud, o);
         transfer.solve();
@@ -51,6 +55,7 @@ main(int argc, char** argv)
         vdbrad::test::SlabProblem problem;
         problem.tau = tau;
         problem.omega0 = omega0;
+        problem.g = g;
         const double exact = vdbrad::test::addingDoublingSlab(problem).reflectance;
         std::printf("%6.1f %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.2e %6d %8.2f %12.1f\n", tau,
             b.albedo, exact, 100.0 * (b.albedo - exact) / exact,

@@ -773,6 +773,32 @@ runSolveCloud(const Arguments& a)
     }
     const std::string name = a.getString("output-name");
     if (name.empty()) throw UsageError("--output-name must not be empty");
+    if (a.has("legendre")) {
+        if (a.has("g")) throw UsageError("give --g or --legendre, not both");
+        std::vector<double> chi;
+        std::istringstream is(a.getString("legendre"));
+        for (std::string item; std::getline(is, item, ',');) {
+            char* end = nullptr;
+            const double v = std::strtod(item.c_str(), &end);
+            if (item.empty() || *end != '\0' || !std::isfinite(v)) {
+                throw UsageError("--legendre: '" + item + "' is not a number");
+            }
+            chi.push_back(v);
+        }
+        try {
+            o.phase = PhaseFunction::legendre(chi);
+        } catch (const std::exception& e) {
+            throw UsageError("--legendre: " + errorMessage(e));
+        }
+    } else {
+        const double g = a.getFloat("g");
+        if (!(g > -1.0 && g < 1.0)) throw UsageError("--g must be in (-1, 1), got " + a.getString("g"));
+        o.phase = PhaseFunction::henyeyGreenstein(g);
+    }
+    o.phaseOrder = a.getInt("phase-order");
+    if (o.phaseOrder < 0 || o.phaseOrder > 32) {
+        throw UsageError("--phase-order must be in [0, 32], got " + a.getString("phase-order"));
+    }
     checkOutput(out, {in}, a.flag("overwrite"));
 
     const VdbFile file = readInput(in);
@@ -930,6 +956,14 @@ commands()
                     "wrap light around the two horizontal axes (a tile of an infinite field)"},
                 {"albedo", OptionType::Float, "1", "0.99",
                     "single-scattering albedo in [0, 1] where the file has no `albedo` grid"},
+                {"g", OptionType::Float, "0", "0.85",
+                    "Henyey-Greenstein asymmetry in (-1, 1); 0: isotropic"},
+                {"legendre", OptionType::String, "", "1,0.8,0.6",
+                    "phase function as Legendre coefficients chi_0 = 1, chi_1, ... (e.g. Mie), "
+                    "instead of --g"},
+                {"phase-order", OptionType::Int, "8", "6",
+                    "spherical-harmonic order kept for an anisotropic phase (delta-M beyond); "
+                    "(order + 1)^2 floats per voxel"},
                 {"extinction-scale", OptionType::Float, "1", "10",
                     "extinction per world unit = density x this"},
                 {"irradiance", OptionType::Float, "1", "3",

@@ -2,8 +2,10 @@
 
 #include "vdbrad/Errors.h"
 #include "vdbrad/LeafOrder.h"
+#include "vdbrad/LinePartition.h"
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/OutputGrids.h"
+#include "vdbrad/PhaseFunction.h"
 #include "vdbrad/SolarBeam.h"
 #include "vdbrad/Version.h"
 
@@ -87,6 +89,17 @@ struct CloudTransfer::Impl
     std::vector<double> deposited;   // beam power lost per voxel
     double incident = 0.0, directOut = 0.0;
     std::vector<float> diffuseJ;     // diffuse mean radiance of the last sweep
+    // Anisotropic scattering: M = (K + 1)^2 radiance moments per voxel (M = 1: isotropic).
+    int M = 1;
+    std::vector<double> chi;         // delta-M scaled Legendre coefficients, l = 0..K
+    std::vector<float> moments;      // diffuse I_lm per voxel (n x M), from the last sweep
+    std::vector<double> beamY;       // Y_lm of the beam's direction of travel
+    // Per direction and sense (2 d + sense), Y_lm of the direction of travel: moments are
+    // accumulated and sources evaluated with them.
+    std::vector<float> yAccumulate;
+    // Mean of Y_lm over the direction set (its solid-angle weights integrate high orders only
+    // roughly: Y_00 exactly, order 8 a few per cent off).
+    std::vector<double> quadratureMean;
 
     struct Pattern
     {
@@ -101,6 +114,7 @@ struct CloudTransfer::Impl
     // Periodic boundaries, per direction and sense: power that left each side face per voxel
     // layer in the last sweep, and how many lines enter through each side face per layer.
     Vec3d lo, hi;
+    Coord boxMin, boxMax;
     int layers = 0, layer0 = 0;
     int up = 1;
     std::vector<double> leftFace;    // [dir][sense][face 0..5][layer]: power carried over
@@ -127,6 +141,70 @@ struct CloudTransfer::Impl
         double height = 0.0;
         const int face = crossedSide(p, t, lo, hi, up, height);
         return face < 0 ? -1 : ((forward ? 0 : 1) * 6 + face) * layers + layerOf(height);
+    }
+    // Slot of the side face and layer that the digital step from voxel a (in the box) to its
+    // neighbour b on the line (outside) crosses: the step's midpoint height, so that the light
+    // leaving one face and the lines entering the opposite one are matched without a bias (a
+    // voxel centre can lie up to 1/2 voxel off the line's axis, which projected along a steep
+    // direction moved light several layers down per wrap). -1: b is above or below the box.
+    int stepSlot(const Coord& a, const Coord& b, bool forward) const
+    {
+        if (b[up] < boxMin[up] || b[up] > boxMax[up]) return -1;
+        int face = -1;
+        for (int k = 0; k < 3 && face < 0; ++k) {
+            if (k == up) continue;
+            if (b[k] > boxMax[k]) face = 2 * k + 1;
+            else if (b[k] < boxMin[k]) face = 2 * k;
+        }
+        if (face < 0) return -2;   // b is inside the box (a sparse medium): no face here
+        return ((forward ? 0 : 1) * 6 + face) * layers + layerOf(0.5 * (a[up] + b[up]));
+    }
+    // Slots where the line whose first voxel is `first` enters, and where the line whose last
+    // voxel is `last` leaves, travelling along t (the pass's sense); by the digital step where
+    // there is one, else by projecting the voxel centre.
+    int entering(const LinePartition& part, const Coord& sigma, const Coord& first, const Vec3d& t,
+        bool forward) const
+    {
+        Coord prev;
+        if (stepAlong(part, sigma, first, forward ? -1 : 1, prev)) {
+            const int slot = stepSlot(first, prev, forward);
+            if (slot != -2) return slot;
+        }
+        return entrySlot(first.asVec3d(), t, forward);
+    }
+    int leaving(const LinePartition& part, const Coord& sigma, const Coord& last, const Vec3d& t,
+        bool forward) const
+    {
+        Coord next;
+        if (stepAlong(part, sigma, last, forward ? 1 : -1, next)) {
+            const int slot = stepSlot(last, next, forward);
+            if (slot != -2) return slot;
+        }
+        return exitSlot(last.asVec3d(), t, forward);
+    }
+    // The neighbour of c on its line, one step along +sigma (dir 1) or -sigma (dir -1): a naive
+    // line has one voxel per major coordinate, so it is one of four candidates. Returns false
+    // where the line has no voxel there (a centred partition's central line at its bound).
+    static bool stepAlong(const LinePartition& part, const Coord& sigma, const Coord& c, int dir,
+        Coord& out)
+    {
+        const int major = part.majorAxis();
+        const LineKey key = part.key(c);
+        Coord base = c;
+        base[major] += dir * (sigma[major] > 0 ? 1 : -1);
+        int minor[2], n = 0;
+        for (int k = 0; k < 3; ++k) if (k != major) minor[n++] = k;
+        for (int d1 = 0; d1 < 2; ++d1) {
+            if (d1 && sigma[minor[0]] == 0) continue;
+            for (int d2 = 0; d2 < 2; ++d2) {
+                if (d2 && sigma[minor[1]] == 0) continue;
+                Coord q = base;
+                q[minor[0]] += dir * d1 * (sigma[minor[0]] > 0 ? 1 : -1);
+                q[minor[1]] += dir * d2 * (sigma[minor[1]] > 0 ? 1 : -1);
+                if (part.key(q) == key) { out = q; return true; }
+            }
+        }
+        return false;
     }
     // The slot light leaving through slot e re-enters by: the opposite face, same sense, layer.
     size_t oppositeSlot(size_t e) const
@@ -180,6 +258,18 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
         impl.kappa[i] = float(k);
         impl.omega[i] = cloud.albedo().grey(i);
     }
+    // Phase function: order K and delta-M scaling of extinction and albedo.
+    const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
+    const PhaseFunction::Truncated trunc = options.phase.truncate(order);
+    impl.chi = trunc.chi;
+    impl.M = (order + 1) * (order + 1);
+    if (trunc.f > 0.0) {
+        for (size_t i = 0; i < n; ++i) {
+            const double w = impl.omega[i], scaled = 1.0 - w * trunc.f;
+            impl.kappa[i] = float(impl.kappa[i] * scaled);
+            impl.omega[i] = scaled > 0.0 ? float(w * (1.0 - trunc.f) / scaled) : 0.f;
+        }
+    }
 
     // The sun, in index space (the transform is a uniform scale plus rotation: world
     // directions map to index directions by the inverse Jacobian).
@@ -205,6 +295,27 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
             ? float(impl.deposited[i] / (4.0 * kPi * double(impl.kappa[i]))) : 0.f;
     }
     impl.diffuseJ.assign(n, 0.f);
+    impl.moments.assign(n * size_t(impl.M), 0.f);
+    {
+        const size_t M = size_t(impl.M), dirs = mDirections.size();
+        std::vector<double> y(M);
+        impl.beamY.resize(M);
+        realSphericalHarmonics(order, -toSun, impl.beamY.data());
+        impl.yAccumulate.resize(dirs * 2 * M);
+        std::vector<double> mean(M, 0.0);
+        for (size_t d = 0; d < dirs; ++d) {
+            const double omega = kPi * mDirections.factor(d);
+            for (int sense = 0; sense < 2; ++sense) {
+                realSphericalHarmonics(order, sense == 0 ? mDirections.unit(d) : -mDirections.unit(d),
+                    y.data());
+                for (size_t lm = 0; lm < M; ++lm) {
+                    impl.yAccumulate[(2 * d + size_t(sense)) * M + lm] = float(y[lm]);
+                    mean[lm] += omega * y[lm] / (4.0 * kPi);
+                }
+            }
+        }
+        impl.quadratureMean = mean;
+    }
 
     // Sweep orders: one per base sign pattern, naive lines (their steps have exact lengths).
     const size_t dirs = mDirections.size();
@@ -222,6 +333,8 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
         pattern.sweep.reset(new LineSweep(cloud.voxels(), order, nullptr, LineType::Naive));
     }
     const openvdb::CoordBBox box = cloud.voxels().bbox();
+    impl.boxMin = box.min();
+    impl.boxMax = box.max();
     impl.lo = box.min().asVec3d() - Vec3d(0.5);
     impl.hi = box.max().asVec3d() + Vec3d(0.5);
     impl.up = up;
@@ -241,12 +354,14 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
                     impl.forDirections(g, [&](size_t d) {
                         const Vec3d unit = mDirections.unit(d);
                         const size_t slice = impl.faceIndex(d, 0, 0, 0);
+                        LinePartition part(mDirections.direction(d), LineType::Naive);
+                        part.centreOn(impl.boxMin + impl.boxMax);
                         pattern.sweep->walk(mDirections.direction(d), impl.reversed[d] != 0, lanes,
                             [&](uint32_t x, Ray& ray, bool forward) {
                                 if (ray.started) return;
                                 ray.started = true;
-                                const int at = impl.entrySlot(pattern.sweep->coord(x).asVec3d(),
-                                    forward ? unit : -unit, forward);
+                                const int at = impl.entering(part, mDirections.direction(d),
+                                    pattern.sweep->coord(x), forward ? unit : -unit, forward);
                                 if (at >= 0) ++impl.enterCount[slice + size_t(at)];
                             },
                             [](const std::vector<Ray>&, bool) {});
@@ -274,9 +389,33 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
     const int up = mOptions.up;
     const bool periodic = mOptions.periodic;
 
-    // Isotropic source: omega0 times the total mean radiance of the last sweep.
-    std::vector<float> source(n);
-    for (size_t i = 0; i < n; ++i) source[i] = impl.omega[i] * (impl.diffuseJ[i] + impl.beamJ[i]);
+    // Source coefficients per voxel: omega0 chi_l times the moments of the total radiance
+    // (the beam's: 4 pi J_beam Y_lm(beam)), so that S(s) = sum_lm c_lm Ytilde_lm(s).
+    const size_t M = size_t(impl.M);
+    std::vector<float> source(n * M);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<double> c(M);
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            double total = 0.0;
+            for (int l = 0, lm = 0; lm < int(M); ++l) {
+                const double w = double(impl.omega[i]) * impl.chi[size_t(l)];
+                for (int m = -l; m <= l; ++m, ++lm) {
+                    const double I = double(impl.moments[i * M + size_t(lm)])
+                        + 4.0 * kPi * double(impl.beamJ[i]) * impl.beamY[size_t(lm)];
+                    c[size_t(lm)] = w * I;
+                    total += c[size_t(lm)] * impl.quadratureMean[size_t(lm)];
+                }
+            }
+            // The direction set integrates this source to 4 pi x total, not exactly to its
+            // isotropic part (the scattered power): scale it to that, keeping its angular shape.
+            // (Subtracting each harmonic's quadrature mean instead would spread the error
+            // evenly over all directions: a forward peak then leaks into backscatter, +30%
+            // slab albedo at order 16.)
+            const double target = c[0] * impl.quadratureMean[0];
+            const double alpha = total > 0.0 ? target / total : 1.0;
+            for (size_t lm = 0; lm < M; ++lm) source[i * M + lm] = float(alpha * c[lm]);
+        }
+    });
 
     std::array<std::vector<float>, Impl::kGroups> gathered;
     std::array<std::array<double, 2>, Impl::kGroups> escaped{};   // [group][0 down, 1 up]
@@ -290,10 +429,13 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
             for (int g = r.begin(); g != r.end(); ++g) {
                 const Impl::Pattern& pattern = impl.patterns[size_t(g / 2)];
                 if (pattern.directions.empty()) continue;
-                std::vector<float> S(n);
-                for (size_t k = 0; k < n; ++k) S[k] = source[pattern.order[k]];
+                std::vector<float> S(n * M);
+                for (size_t k = 0; k < n; ++k) {
+                    std::copy_n(source.begin() + long(pattern.order[k] * M), M,
+                        S.begin() + long(k * M));
+                }
                 std::vector<float>& G = gathered[size_t(g)];
-                G.assign(n, 0.f);
+                G.assign(n * M, 0.f);
                 LineSweep::Lanes<Ray> lanes;
                 impl.forDirections(g, [&](size_t d) {
                     if (cancelled.load(std::memory_order_relaxed)) return;
@@ -316,6 +458,10 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                         entry.assign(impl.leftFace.begin() + long(slice),
                             impl.leftFace.begin() + long(slice + sliceSize));
                     }
+                    LinePartition part(sigma, LineType::Naive);
+                    part.centreOn(impl.boxMin + impl.boxMax);
+                    const float* yAcc[2] = {&impl.yAccumulate[2 * d * M],
+                        &impl.yAccumulate[(2 * d + 1) * M]};
                     auto pass = [&](bool sources) {
                         std::fill(exits.begin(), exits.end(), 0.0);
                         pattern.sweep->walk(sigma, impl.reversed[d] != 0, lanes,
@@ -324,8 +470,8 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                     ray.started = true;
                                     if (periodic) {
                                         const Vec3d t = forward ? unit : -unit;
-                                        const int at = impl.entrySlot(
-                                            pattern.sweep->coord(x).asVec3d(), t, forward);
+                                        const int at = impl.entering(part, sigma,
+                                            pattern.sweep->coord(x), t, forward);
                                         if (at >= 0) {
                                             const uint32_t c = impl.enterCount[slice + size_t(at)];
                                             ray.radiance = float(entry[size_t(at)] / c / etendue);
@@ -335,8 +481,15 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                 ray.last = x;
                                 float transmit, mean;
                                 stepFactors(pattern.kappa[x] * step, transmit, mean);
-                                const float s = sources ? S[x] : 0.f;
-                                G[x] += omega * (s + (ray.radiance - s) * mean);
+                                const size_t sense = forward ? 0 : 1;
+                                float s = 0.f;
+                                if (sources) {
+                                    const float* c = &S[size_t(x) * M];
+                                    for (size_t lm = 0; lm < M; ++lm) s += c[lm] * yAcc[sense][lm];
+                                }
+                                const float lbar = omega * (s + (ray.radiance - s) * mean);
+                                float* acc = &G[size_t(x) * M];
+                                for (size_t lm = 0; lm < M; ++lm) acc[lm] += lbar * yAcc[sense][lm];
                                 ray.radiance = s + (ray.radiance - s) * transmit;
                             },
                             [&](const std::vector<Ray>& fronts, bool forward) {
@@ -345,8 +498,8 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                     if (!ray.started || ray.radiance == 0.f) continue;
                                     const double p = double(ray.radiance) * etendue;
                                     if (periodic) {
-                                        const int at = impl.exitSlot(
-                                            pattern.sweep->coord(ray.last).asVec3d(), t, forward);
+                                        const int at = impl.leaving(part, sigma,
+                                            pattern.sweep->coord(ray.last), t, forward);
                                         if (at >= 0) { exits[size_t(at)] += p; continue; }
                                     }
                                     if (t[up] == 0.0) {
@@ -398,17 +551,21 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
         });
     if (cancelled) throw Cancelled("cloud transfer");
 
-    // J from the groups, in a fixed order (bit-identical for any thread count).
-    std::vector<double> sum(n, 0.0);
+    // Moments from the groups, in a fixed order (bit-identical for any thread count).
+    std::vector<double> sum(n * M, 0.0);
     for (int g = 0; g < Impl::kGroups; ++g) {
         const std::vector<float>& G = gathered[size_t(g)];
         if (G.empty()) continue;
         const std::vector<uint32_t>& order = impl.patterns[size_t(g / 2)].order;
-        for (size_t k = 0; k < n; ++k) sum[order[k]] += double(G[k]);
+        for (size_t k = 0; k < n; ++k) {
+            for (size_t lm = 0; lm < M; ++lm) sum[order[k] * M + lm] += double(G[k * M + lm]);
+        }
     }
+    for (size_t e = 0; e < n * M; ++e) impl.moments[e] = float(sum[e]);
     double maxChange = 0.0, maxJ = 0.0, absorbed = 0.0;
+    const double y00 = 1.0 / std::sqrt(4.0 * kPi);
     for (size_t i = 0; i < n; ++i) {
-        const float J = float(sum[i] / (4.0 * kPi));
+        const float J = float(sum[i * M] * y00);
         maxChange = std::max(maxChange, double(std::abs(J - impl.diffuseJ[i])));
         maxJ = std::max(maxJ, double(J + impl.beamJ[i]));
         impl.diffuseJ[i] = J;

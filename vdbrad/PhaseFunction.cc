@@ -1,0 +1,101 @@
+#include "vdbrad/PhaseFunction.h"
+
+#include <openvdb/Exceptions.h>
+
+#include <cmath>
+
+namespace vdbrad {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kMaxOrder = 64;
+} // namespace
+
+PhaseFunction
+PhaseFunction::henyeyGreenstein(double g)
+{
+    if (!(g > -1.0 && g < 1.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "Henyey-Greenstein g must be in (-1, 1), got " << g);
+    }
+    PhaseFunction p;
+    p.mHg = g != 0.0;
+    p.mG = g;
+    return p;
+}
+
+PhaseFunction
+PhaseFunction::legendre(std::vector<double> chi)
+{
+    if (chi.empty() || chi[0] != 1.0) {
+        OPENVDB_THROW(openvdb::ValueError, "Legendre phase coefficients must start with chi_0 = 1");
+    }
+    for (size_t l = 0; l < chi.size(); ++l) {
+        if (!(std::abs(chi[l]) <= 1.0)) {
+            OPENVDB_THROW(openvdb::ValueError, "Legendre phase coefficient chi_" << l
+                << " must be in [-1, 1], got " << chi[l]);
+        }
+    }
+    while (chi.size() > 1 && chi.back() == 0.0) chi.pop_back();
+    PhaseFunction p;
+    p.mChi = std::move(chi);
+    return p;
+}
+
+double
+PhaseFunction::chi(int l) const
+{
+    if (l < 0) return 0.0;
+    if (mHg) return std::pow(mG, l);
+    return size_t(l) < mChi.size() ? mChi[size_t(l)] : 0.0;
+}
+
+PhaseFunction::Truncated
+PhaseFunction::truncate(int order) const
+{
+    if (order < 0 || order > kMaxOrder) {
+        OPENVDB_THROW(openvdb::ValueError, "phase order must be in [0, " << kMaxOrder << "], got "
+            << order);
+    }
+    Truncated t;
+    t.f = chi(order + 1);
+    // A backward-peaked phase (f < 0) is not what delta-M is for: no scaling then.
+    if (t.f < 0.0) t.f = 0.0;
+    t.chi.resize(size_t(order) + 1);
+    for (int l = 0; l <= order; ++l) t.chi[size_t(l)] = (chi(l) - t.f) / (1.0 - t.f);
+    return t;
+}
+
+void
+realSphericalHarmonics(int order, const openvdb::Vec3d& dir, double* out)
+{
+    const double len = dir.length();
+    const double z = len > 0.0 ? dir.z() / len : 1.0;
+    const double s = std::sqrt(std::max(0.0, 1.0 - z * z));
+    const double phi = std::atan2(dir.y(), dir.x());
+    // Associated Legendre functions P_l^m(z) (no Condon-Shortley phase: any consistent sign
+    // convention gives orthonormal harmonics), by the standard recurrences, column by column.
+    double pmm = 1.0;
+    for (int m = 0; m <= order; ++m) {
+        if (m > 0) pmm *= (2 * m - 1) * s;
+        double p2 = 0.0, p1 = pmm;   // P_{l-2}^m, P_{l-1}^m
+        for (int l = m; l <= order; ++l) {
+            double p;
+            if (l == m) p = pmm;
+            else if (l == m + 1) p = (2 * m + 1) * z * pmm;
+            else p = ((2 * l - 1) * z * p1 - (l + m - 1) * p2) / (l - m);
+            if (l > m) { p2 = p1; p1 = p; }
+            // K_lm = sqrt((2l + 1) / 4pi (l - m)! / (l + m)!).
+            double ratio = 1.0;
+            for (int k = l - m + 1; k <= l + m; ++k) ratio /= k;
+            const double K = std::sqrt((2 * l + 1) / (4.0 * kPi) * ratio);
+            if (m == 0) {
+                out[l * l + l] = K * p;
+            } else {
+                out[l * l + l + m] = std::sqrt(2.0) * K * p * std::cos(m * phi);
+                out[l * l + l - m] = std::sqrt(2.0) * K * p * std::sin(m * phi);
+            }
+        }
+    }
+}
+
+} // namespace vdbrad

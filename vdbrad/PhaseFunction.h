@@ -1,0 +1,63 @@
+// PhaseFunction: how a medium voxel redistributes the light it scatters, as the Legendre
+// coefficients the source iteration needs, with delta-M scaling (Wiscombe 1977).
+//
+// A phase function normalised to (1/4pi) int p dOmega = 1 expands as
+//     p(cos Theta) = sum_l (2l + 1) chi_l P_l(cos Theta),   chi_0 = 1,
+// (Henyey-Greenstein: chi_l = g^l). The sweeps keep, per voxel, the moments of the radiance
+// I_lm = int L Y_lm dOmega up to order K (real orthonormal spherical harmonics, (K+1)^2 numbers;
+// none beyond J for isotropic scattering), and by the addition theorem the scattered source is
+//     S(s) = omega0 sum_{l <= K} chi_l sum_m I_lm Y_lm(s).
+// A forward peak needs many orders; delta-M moves the fraction f = chi_{K+1} of the scattering
+// into the unscattered direction instead (sigma_t' = (1 - omega0 f) sigma_t,
+// omega0' = (1 - f) omega0 / (1 - omega0 f), chi_l' = (chi_l - f) / (1 - f)), which keeps fluxes
+// accurate with a small K.
+#pragma once
+
+#include <openvdb/Types.h>
+
+#include <vector>
+
+namespace vdbrad {
+
+class PhaseFunction
+{
+public:
+    /// Isotropic scattering (chi_l = 0 for l > 0).
+    PhaseFunction() : mChi{1.0} {}
+
+    /// @brief Henyey-Greenstein with asymmetry @a g in (-1, 1).
+    /// @throw openvdb::ValueError otherwise
+    static PhaseFunction henyeyGreenstein(double g);
+
+    /// @brief A phase given by its Legendre coefficients chi_0 = 1, chi_1, ... (e.g. Mie); later
+    /// coefficients are taken as 0.
+    /// @throw openvdb::ValueError if chi_0 != 1 or some |chi_l| > 1
+    static PhaseFunction legendre(std::vector<double> chi);
+
+    /// chi_l (0 beyond the known coefficients, or g^l for Henyey-Greenstein).
+    double chi(int l) const;
+    /// The asymmetry parameter g = chi_1.
+    double asymmetry() const { return chi(1); }
+    bool isIsotropic() const { return !mHg && mChi.size() == 1; }
+
+    /// The delta-M truncation at order K: the fraction f = chi_{K+1} moved forward, and the
+    /// scaled coefficients chi_l', l = 0..K. K = 0 gives isotropic scattering with the
+    /// transport correction f = g (the classical similarity scaling).
+    struct Truncated
+    {
+        double f = 0.0;
+        std::vector<double> chi;
+    };
+    Truncated truncate(int order) const;
+
+private:
+    std::vector<double> mChi;
+    bool mHg = false;
+    double mG = 0.0;
+};
+
+/// @brief Real orthonormal spherical harmonics Y_lm(@a dir), l = 0..order, m = -l..l, written to
+/// @a out in the order l^2 + l + m ((order + 1)^2 values). @a dir need not be unit.
+void realSphericalHarmonics(int order, const openvdb::Vec3d& dir, double* out);
+
+} // namespace vdbrad
