@@ -618,7 +618,8 @@ runSolve(const Arguments& a)
 
 // ---- render ----------------------------------------------------------------------------------
 
-// "a,b,c" -> exactly @a count finite numbers, or a UsageError naming the option.
+// "a,b,c" -> exactly @a count finite numbers (count 0: one or more), or a UsageError naming the
+// option.
 std::vector<double>
 numberList(const Arguments& a, const char* option, size_t count, const char* shape)
 {
@@ -634,9 +635,10 @@ numberList(const Arguments& a, const char* option, size_t count, const char* sha
         }
         values.push_back(v);
     }
-    if (values.size() != count) {
-        throw UsageError("--" + std::string(option) + " needs " + std::to_string(count)
-            + " comma-separated numbers (" + shape + "), got '" + text + "'");
+    if (count == 0 ? values.empty() : values.size() != count) {
+        throw UsageError("--" + std::string(option) + " needs "
+            + (count ? std::to_string(count) + " " : "") + "comma-separated numbers (" + shape
+            + "), got '" + text + "'");
     }
     return values;
 }
@@ -775,16 +777,7 @@ runSolveCloud(const Arguments& a)
     if (name.empty()) throw UsageError("--output-name must not be empty");
     if (a.has("legendre")) {
         if (a.has("g")) throw UsageError("give --g or --legendre, not both");
-        std::vector<double> chi;
-        std::istringstream is(a.getString("legendre"));
-        for (std::string item; std::getline(is, item, ',');) {
-            char* end = nullptr;
-            const double v = std::strtod(item.c_str(), &end);
-            if (item.empty() || *end != '\0' || !std::isfinite(v)) {
-                throw UsageError("--legendre: '" + item + "' is not a number");
-            }
-            chi.push_back(v);
-        }
+        const std::vector<double> chi = numberList(a, "legendre", 0, "chi_0 = 1, chi_1, ...");
         try {
             o.phase = PhaseFunction::legendre(chi);
         } catch (const std::exception& e) {

@@ -182,10 +182,10 @@ TEST_F(CloudTest, PhaseFunctionCoefficientsAndHarmonics)
 TEST_F(CloudTest, ForwardScatteringSlabAgreesWithTheExactSolution)
 {
     // Henyey-Greenstein g = 0.848 (the issue's cloud), omega0 = 1, tau = 10, sun at the zenith,
-    // periodic 2 x 20 x 2 voxels, 303 directions, order 8 with delta-M, against adding-doubling
-    // (0.4261428). Measured +3.8% (BENCHMARKS.md: +11% at tau 0.5, where delta-M's truncated
-    // single scattering dominates, to -0.4% at tau 50). Energy still balances.
-    const Cloud cloud = slab(2, 20, 2, 10.0, 1.f);
+    // periodic 4 x 20 x 4 voxels, 303 directions, order 8 with delta-M and the full phase for
+    // the first scattering, against adding-doubling (0.4261428). The issue aims at 1%; measured
+    // +0.41% (BENCHMARKS.md: within 1.05% for tau 0.5 to 20, -1.3% at 50).
+    const Cloud cloud = slab(4, 20, 4, 10.0, 1.f);
     CloudTransferOptions o;
     o.periodic = true;
     o.directions = 300;
@@ -199,7 +199,8 @@ TEST_F(CloudTest, ForwardScatteringSlabAgreesWithTheExactSolution)
     problem.tau = 10.0;
     problem.g = 0.848;
     const double exact = test::addingDoublingSlab(problem).reflectance;
-    EXPECT_NEAR(transfer.budget().albedo, exact, 0.05 * exact);
+    std::printf("HG slab tau 10: albedo %.5f, exact %.5f\n", transfer.budget().albedo, exact);
+    EXPECT_NEAR(transfer.budget().albedo, exact, 0.01 * exact);
     EXPECT_NEAR(transfer.budget().balance(), 0.0, 1e-4);
     EXPECT_EQ(transfer.budget().absorptance, 0.0);
 }

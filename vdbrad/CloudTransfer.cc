@@ -93,7 +93,11 @@ struct CloudTransfer::Impl
     int M = 1;
     std::vector<double> chi;         // delta-M scaled Legendre coefficients, l = 0..K
     std::vector<float> moments;      // diffuse I_lm per voxel (n x M), from the last sweep
-    std::vector<double> beamY;       // Y_lm of the beam's direction of travel
+    // First scattering of the beam, per direction and sense: the full phase function (not its
+    // truncation) divided by 1 - f, less the forward fraction f delta-M keeps in the beam, taken
+    // from the directions closest to the beam's, so that sum_s Omega_s T_s = 4 pi exactly. A
+    // voxel's source is then omega0' J_beam T_s (DISORT's TMS idea, applied to the source).
+    std::vector<float> beamTable;
     // Per direction and sense (2 d + sense), Y_lm of the direction of travel: moments are
     // accumulated and sources evaluated with them.
     std::vector<float> yAccumulate;
@@ -299,8 +303,6 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
     {
         const size_t M = size_t(impl.M), dirs = mDirections.size();
         std::vector<double> y(M);
-        impl.beamY.resize(M);
-        realSphericalHarmonics(order, -toSun, impl.beamY.data());
         impl.yAccumulate.resize(dirs * 2 * M);
         std::vector<double> mean(M, 0.0);
         for (size_t d = 0; d < dirs; ++d) {
@@ -315,6 +317,37 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
             }
         }
         impl.quadratureMean = mean;
+
+        const Vec3d beam = (-toSun).unit();
+        std::vector<double> weight(dirs * 2);
+        std::vector<std::pair<double, size_t>> byAngle(dirs * 2);
+        for (size_t e = 0; e < dirs * 2; ++e) {
+            const Vec3d s = (e % 2 == 0 ? 1.0 : -1.0) * mDirections.unit(e / 2);
+            const double mu = std::clamp(s.dot(beam), -1.0, 1.0);
+            weight[e] = kPi * mDirections.factor(e / 2) * options.phase.value(mu)
+                / (4.0 * kPi * (1.0 - trunc.f));
+            byAngle[e] = {-mu, e};
+        }
+        std::sort(byAngle.begin(), byAngle.end());
+        // The sampled weights add up to about 1 + f / (1 - f): the forward part delta-M keeps
+        // in the beam, plus the quadrature error of the sharp forward peak. Both live in the
+        // forward cone, so the directions closest to the beam absorb the difference to exactly
+        // 1, and the side and backward weights stay the phase function's own.
+        double excess = -1.0;
+        for (double w : weight) excess += w;
+        for (const auto& [negMu, e] : byAngle) {
+            if (excess <= 0.0) break;
+            const double take = std::min(excess, weight[e]);
+            weight[e] -= take;
+            excess -= take;
+        }
+        if (excess < 0.0) weight[byAngle.front().second] -= excess;
+        const double total = 1.0;
+        impl.beamTable.resize(dirs * 2);
+        for (size_t e = 0; e < dirs * 2; ++e) {
+            impl.beamTable[e] = float(4.0 * kPi * weight[e] / total
+                / (kPi * mDirections.factor(e / 2)));
+        }
     }
 
     // Sweep orders: one per base sign pattern, naive lines (their steps have exact lengths).
@@ -389,10 +422,10 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
     const int up = mOptions.up;
     const bool periodic = mOptions.periodic;
 
-    // Source coefficients per voxel: omega0 chi_l times the moments of the total radiance
-    // (the beam's: 4 pi J_beam Y_lm(beam)), so that S(s) = sum_lm c_lm Ytilde_lm(s).
+    // Source per voxel: omega0 chi_l times the moments of the diffuse radiance, so that
+    // S(s) = sum_lm c_lm Y_lm(s), plus the beam's first scattering omega0 J_beam T(s).
     const size_t M = size_t(impl.M);
-    std::vector<float> source(n * M);
+    std::vector<float> source(n * M), beamSource(n);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
         std::vector<double> c(M);
         for (size_t i = r.begin(); i != r.end(); ++i) {
@@ -400,9 +433,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
             for (int l = 0, lm = 0; lm < int(M); ++l) {
                 const double w = double(impl.omega[i]) * impl.chi[size_t(l)];
                 for (int m = -l; m <= l; ++m, ++lm) {
-                    const double I = double(impl.moments[i * M + size_t(lm)])
-                        + 4.0 * kPi * double(impl.beamJ[i]) * impl.beamY[size_t(lm)];
-                    c[size_t(lm)] = w * I;
+                    c[size_t(lm)] = w * double(impl.moments[i * M + size_t(lm)]);
                     total += c[size_t(lm)] * impl.quadratureMean[size_t(lm)];
                 }
             }
@@ -414,6 +445,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
             const double target = c[0] * impl.quadratureMean[0];
             const double alpha = total > 0.0 ? target / total : 1.0;
             for (size_t lm = 0; lm < M; ++lm) source[i * M + lm] = float(alpha * c[lm]);
+            beamSource[i] = impl.omega[i] * impl.beamJ[i];
         }
     });
 
@@ -429,8 +461,9 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
             for (int g = r.begin(); g != r.end(); ++g) {
                 const Impl::Pattern& pattern = impl.patterns[size_t(g / 2)];
                 if (pattern.directions.empty()) continue;
-                std::vector<float> S(n * M);
+                std::vector<float> S(n * M), B(n);
                 for (size_t k = 0; k < n; ++k) {
+                    B[k] = beamSource[pattern.order[k]];
                     std::copy_n(source.begin() + long(pattern.order[k] * M), M,
                         S.begin() + long(k * M));
                 }
@@ -460,6 +493,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                     }
                     LinePartition part(sigma, LineType::Naive);
                     part.centreOn(impl.boxMin + impl.boxMax);
+                    const float beamT[2] = {impl.beamTable[2 * d], impl.beamTable[2 * d + 1]};
                     const float* yAcc[2] = {&impl.yAccumulate[2 * d * M],
                         &impl.yAccumulate[(2 * d + 1) * M]};
                     auto pass = [&](bool sources) {
@@ -486,6 +520,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                 if (sources) {
                                     const float* c = &S[size_t(x) * M];
                                     for (size_t lm = 0; lm < M; ++lm) s += c[lm] * yAcc[sense][lm];
+                                    s += B[x] * beamT[sense];
                                 }
                                 const float lbar = omega * (s + (ray.radiance - s) * mean);
                                 float* acc = &G[size_t(x) * M];

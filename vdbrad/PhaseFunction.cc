@@ -49,6 +49,26 @@ PhaseFunction::chi(int l) const
     return size_t(l) < mChi.size() ? mChi[size_t(l)] : 0.0;
 }
 
+double
+PhaseFunction::value(double mu) const
+{
+    if (mHg) {
+        const double g2 = mG * mG;
+        return (1.0 - g2) / std::pow(1.0 + g2 - 2.0 * mG * mu, 1.5);
+    }
+    double sum = 0.0, p0 = 1.0, p1 = mu;
+    for (size_t l = 0; l < mChi.size(); ++l) {
+        double pl = l == 0 ? 1.0 : mu;
+        if (l >= 2) {
+            pl = ((2.0 * double(l) - 1.0) * mu * p1 - (double(l) - 1.0) * p0) / double(l);
+            p0 = p1;
+            p1 = pl;
+        }
+        sum += (2.0 * double(l) + 1.0) * mChi[l] * pl;
+    }
+    return sum;
+}
+
 PhaseFunction::Truncated
 PhaseFunction::truncate(int order) const
 {

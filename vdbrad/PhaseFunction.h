@@ -36,6 +36,9 @@ public:
 
     /// chi_l (0 beyond the known coefficients, or g^l for Henyey-Greenstein).
     double chi(int l) const;
+    /// @brief p(mu), normalised to (1/4pi) int p dOmega = 1: Henyey-Greenstein's closed form,
+    /// or the Legendre series of the given coefficients.
+    double value(double mu) const;
     /// The asymmetry parameter g = chi_1.
     double asymmetry() const { return chi(1); }
     bool isIsotropic() const { return !mHg && mChi.size() == 1; }
