@@ -4,6 +4,8 @@
 // voxel.direction.iteration. The slab is W x H x W voxels; periodic boundaries make it infinite.
 //
 //   build/benchmarks/bench_cloud [directions=300] [layers=20] [omega0=1] [width=4] [g=0] [order=8]
+//                                [csv=] (appends rows, with the photon Monte Carlo and delta-
+//                                Eddington albedos, for scripts/plot-cloud.py)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -26,6 +28,11 @@ main(int argc, char** argv)
     const int width = argc > 4 ? std::atoi(argv[4]) : 4;
     const double g = argc > 5 ? std::atof(argv[5]) : 0.0;
     const int order = argc > 6 ? std::atoi(argv[6]) : 8;
+    std::FILE* csv = argc > 7 ? std::fopen(argv[7], "a") : nullptr;
+    if (csv && std::ftell(csv) == 0) {
+        std::fprintf(csv, "g,tau,albedo,exact,monte_carlo,mc_stderr,delta_eddington,iterations,"
+            "seconds,to1_iterations\n");
+    }
     std::printf("periodic slab %d x %d x %d, HG g %.3f (order %d), omega0 %.3f, %d directions "
         "asked\n", width, layers, width, g, order, omega0, dirs);
     std::printf("%6s %10s %10s %8s %10s %10s %10s %6s %8s %12s %12s\n", "tau", "albedo", "exact",
@@ -74,11 +81,21 @@ main(int argc, char** argv)
         char to1[32];
         if (within > 0) std::snprintf(to1, sizeof to1, "%d / %.2f", within, withinSeconds);
         else std::snprintf(to1, sizeof to1, "never");
+        if (csv) {
+            vdbrad::test::MonteCarloRun run;
+            run.photons = 1000000;
+            const vdbrad::test::SlabResult mc = vdbrad::test::slabMonteCarlo(problem, run);
+            std::fprintf(csv, "%g,%g,%.6f,%.6f,%.6f,%.6f,%.6f,%d,%.3f,%d\n", g, tau, b.albedo, exact,
+                mc.reflectance, mc.reflectanceStderr,
+                vdbrad::test::deltaEddingtonAlbedo(tau, omega0, g, 1.0),
+                transfer.iterationCount(), s, within);
+        }
         std::printf("%6.1f %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.2e %6d %8.2f %12.1f %12s\n", tau,
             b.albedo, exact, 100.0 * (b.albedo - exact) / exact,
             b.transmittance, b.absorptance, b.balance(), transfer.iterationCount(), s,
             1e9 * s / (double(cloud.size()) * double(transfer.directions().size())
                 * transfer.iterationCount()), to1);
     }
+    if (csv) std::fclose(csv);
     return 0;
 }

@@ -201,6 +201,12 @@ TEST_F(CloudTest, ForwardScatteringSlabAgreesWithTheExactSolution)
     const double exact = test::addingDoublingSlab(problem).reflectance;
     std::printf("HG slab tau 10: albedo %.5f, exact %.5f\n", transfer.budget().albedo, exact);
     EXPECT_NEAR(transfer.budget().albedo, exact, 0.01 * exact);
+    // And against the photon Monte Carlo the issue names: 1% plus 3 standard errors.
+    test::MonteCarloRun run;
+    run.photons = 200000;
+    const test::SlabResult mc = test::slabMonteCarlo(problem, run);
+    EXPECT_NEAR(transfer.budget().albedo, mc.reflectance,
+        0.01 * mc.reflectance + 3.0 * mc.reflectanceStderr);
     EXPECT_NEAR(transfer.budget().balance(), 0.0, 1e-4);
     EXPECT_EQ(transfer.budget().absorptance, 0.0);
 }
