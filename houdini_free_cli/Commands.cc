@@ -518,6 +518,29 @@ runCompare(const Arguments& a)
 
 // ---- solve -----------------------------------------------------------------------------------
 
+// --directions, --iterations and --tolerance, checked the same way for every solver.
+struct IterationLimits
+{
+    int directions = 0, iterations = 0;
+    double tolerance = 0.0;
+};
+
+IterationLimits
+iterationLimits(const Arguments& a)
+{
+    IterationLimits l;
+    l.directions = a.getInt("directions");
+    if (l.directions < 1 || size_t(l.directions) > DirectionSet::maxCount()) {
+        throw UsageError("--directions must be in [1, " + std::to_string(DirectionSet::maxCount())
+            + "], got " + a.getString("directions"));
+    }
+    l.iterations = a.getInt("iterations");
+    if (l.iterations < 1) throw UsageError("--iterations must be >= 1");
+    l.tolerance = a.getFloat("tolerance");
+    if (!(l.tolerance >= 0.0)) throw UsageError("--tolerance must be >= 0");
+    return l;
+}
+
 // Iterate @a solver (RadiositySolver or MonteCarloSolver) to its tolerance or @a maxIterations,
 // one progress step per iteration reporting its residual.
 template<typename SolverT>
@@ -539,9 +562,10 @@ runSolve(const Arguments& a)
     const std::string in = a.positional()[0], out = a.positional()[1];
     const SceneOptions sceneOpts = sceneOptions(a);
     RadiosityOptions o;
-    o.directions = a.getInt("directions");
-    o.maxIterations = a.getInt("iterations");
-    o.tolerance = a.getFloat("tolerance");
+    const IterationLimits limits = iterationLimits(a);
+    o.directions = limits.directions;
+    o.maxIterations = limits.iterations;
+    o.tolerance = limits.tolerance;
     o.occlusionDepth = float(a.getFloat("occlusion-depth"));
     const std::string method = a.getString("method");
     if (method == "sweep") o.visibility = Visibility::Sweep;
@@ -567,12 +591,6 @@ runSolve(const Arguments& a)
     if (lines == "naive") o.lines = LineType::Naive;
     else if (lines == "standard") o.lines = LineType::Standard;
     else throw UsageError("--lines must be naive or standard, got '" + lines + "'");
-    if (o.directions < 1 || size_t(o.directions) > DirectionSet::maxCount()) {
-        throw UsageError("--directions must be in [1, " + std::to_string(DirectionSet::maxCount())
-            + "], got " + a.getString("directions"));
-    }
-    if (o.maxIterations < 1) throw UsageError("--iterations must be >= 1");
-    if (!(o.tolerance >= 0.0)) throw UsageError("--tolerance must be >= 0");
     if (!(o.occlusionDepth > 0.f)) throw UsageError("--occlusion-depth must be > 0");
     const int threads = a.getInt("threads");
     if (threads < 0) throw UsageError("--threads must be >= 0 (0: all cores)");
@@ -760,15 +778,10 @@ runSolveCloud(const Arguments& a)
     else if (up == "z") o.up = 2;
     else throw UsageError("--up must be x, y or z, got '" + up + "'");
     o.periodic = a.flag("periodic");
-    o.directions = a.getInt("directions");
-    if (o.directions < 1 || size_t(o.directions) > DirectionSet::maxCount()) {
-        throw UsageError("--directions must be in [1, " + std::to_string(DirectionSet::maxCount())
-            + "], got " + a.getString("directions"));
-    }
-    o.maxIterations = a.getInt("iterations");
-    if (o.maxIterations < 1) throw UsageError("--iterations must be >= 1");
-    o.tolerance = a.getFloat("tolerance");
-    if (!(o.tolerance >= 0.0)) throw UsageError("--tolerance must be >= 0");
+    const IterationLimits limits = iterationLimits(a);
+    o.directions = limits.directions;
+    o.maxIterations = limits.iterations;
+    o.tolerance = limits.tolerance;
     o.irradiance = a.getFloat("irradiance");
     if (!(o.irradiance >= 0.0) || !std::isfinite(o.irradiance)) {
         throw UsageError("--irradiance must be >= 0");
