@@ -549,9 +549,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                         // What left a side face enters through the opposite one at the same
                         // height, unless no line enters there: then it has left for good.
                         double transit = 0.0;
-                        for (size_t e = 0; e < sliceSize; ++e) {
-                            entry[e] = 0.0;
-                        }
+                        std::fill(entry.begin(), entry.end(), 0.0);
                         for (size_t e = 0; e < sliceSize; ++e) {
                             if (exits[e] == 0.0) continue;
                             const size_t to = impl.oppositeSlot(e);

@@ -2,6 +2,7 @@
 
 #include "vdbrad/Errors.h"
 #include "vdbrad/GridContract.h"
+#include "vdbrad/VoxelMarch.h"
 
 #include <openvdb/math/Stencils.h>
 #include <openvdb/tools/RayIntersector.h>
@@ -37,82 +38,6 @@ template<typename VecT>
 bool finite(const VecT& v)
 {
     return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
-}
-
-// The cells of a voxel set along q(t) = q0 + t d, in order, for t in [tBegin, tEnd], in
-// coordinates shifted by half a voxel so that the cube of voxel c is the cell [c, c + 1).
-// visit(index, tIn, tOut) is called for every cell of the set the ray crosses (index >= 0 in
-// the index tree) and returns false to stop. Empty space is crossed a node at a time: a cell in
-// a tile or a missing child of the index tree (side 8, 128 or 4096) is left through that node's
-// far face in one step -- the hierarchical DDA of OpenVDB's ray intersectors on the index tree's
-// own levels. Cell boundaries are computed from q0 each time, never accumulated, so chord
-// lengths are exact to rounding.
-template<typename VisitT>
-void
-march(Accessor& acc, const CoordBBox& box, const Vec3d& q0, const Vec3d& d, double tBegin,
-    double tEnd, VisitT&& visit)
-{
-    if (box.empty()) return;
-    const Vec3d lo = box.min().asVec3d(), hi = (box.max() + Coord(1)).asVec3d();
-    Vec3d inv;
-    int step[3];
-    for (int k = 0; k < 3; ++k) {
-        step[k] = d[k] > 0.0 ? 1 : d[k] < 0.0 ? -1 : 0;
-        if (step[k] == 0) {
-            if (q0[k] < lo[k] || q0[k] >= hi[k]) return;
-            inv[k] = kInf;
-            continue;
-        }
-        inv[k] = 1.0 / d[k];
-        double ta = (lo[k] - q0[k]) * inv[k], tb = (hi[k] - q0[k]) * inv[k];
-        if (ta > tb) std::swap(ta, tb);
-        tBegin = std::max(tBegin, ta);
-        tEnd = std::min(tEnd, tb);
-    }
-    if (!(tBegin < tEnd)) return;
-
-    Coord c;
-    {
-        const Vec3d q = q0 + d * tBegin;
-        for (int k = 0; k < 3; ++k) {
-            // The entry point lies on the box; a far-side face belongs to the last cell.
-            c[k] = int32_t(std::clamp(std::floor(q[k]), lo[k], hi[k] - 1.0));
-        }
-    }
-    double t = tBegin;
-    while (t < tEnd) {
-        const int32_t index = acc.getValue(c);
-        const int64_t side = index >= 0 ? 1 : VoxelIndex::emptyNodeSide(acc, c);
-        int64_t origin[3];
-        double tOut = kInf;
-        int axis = 0;
-        for (int k = 0; k < 3; ++k) {
-            origin[k] = int64_t(c[k]) & ~(side - 1);
-            if (step[k] == 0) continue;
-            const double face = double(step[k] > 0 ? origin[k] + side : origin[k]);
-            const double tk = (face - q0[k]) * inv[k];
-            if (tk < tOut) { tOut = tk; axis = k; }
-        }
-        tOut = std::max(tOut, t);   // a rounding-level step backwards is no step
-        if (index >= 0 && !visit(index, t, std::min(tOut, tEnd))) return;
-        if (tOut >= tEnd) return;
-        if (side == 1) {
-            c[axis] += step[axis];
-        } else {
-            // Across the exit face on the exit axis; where the ray is on the others (clamped to
-            // the node we leave, against rounding at its edges).
-            const Vec3d q = q0 + d * tOut;
-            for (int k = 0; k < 3; ++k) {
-                if (k == axis) {
-                    c[k] = int32_t(step[k] > 0 ? origin[k] + side : origin[k] - 1);
-                } else {
-                    c[k] = int32_t(std::clamp(int64_t(std::floor(q[k])), origin[k],
-                        origin[k] + side - 1));
-                }
-            }
-        }
-        t = tOut;
-    }
 }
 
 // Index-space ray of a world-space ray, parametrised by world distance: the same t in both.
@@ -257,7 +182,7 @@ struct Renderer::Tracer
             return true;
         }
         int32_t hit = -1;
-        march(*mSurface, mR.mSurfaceBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
+        marchVoxels(*mSurface, mR.mSurfaceBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
             [&](int32_t index, double tIn, double) {
                 hit = index;
                 tHit = tIn;
@@ -309,7 +234,7 @@ struct Renderer::Tracer
         const Attribute& source = mR.mSource;
         const bool emits = mR.mCloudEmits;
         const IndexRay ir = toIndex(cloud.transform(), eye, dir);
-        march(*mCloud, mR.mCloudBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
+        marchVoxels(*mCloud, mR.mCloudBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
             [&](int32_t index, double tIn, double tOut) {
                 const double x = double(cloud.extinction(size_t(index))) * (tOut - tIn);
                 if (emits) L += Vec3d(source.rgb(size_t(index))) * (T * -std::expm1(-x));

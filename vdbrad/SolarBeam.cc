@@ -1,6 +1,7 @@
 #include "vdbrad/SolarBeam.h"
 
 #include "vdbrad/Errors.h"
+#include "vdbrad/VoxelMarch.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -23,68 +24,55 @@ constexpr double kFixed = 1099511627776.0;   // 2^40
 
 struct Marcher
 {
-    const VoxelIndex& voxels;
     const std::vector<float>& depth;
     std::vector<std::atomic<int64_t>>& deposited;
-    Coord lo, hi;         // the voxels' bounding box (index)
+    openvdb::CoordBBox box;   // the voxels' bounding box (index)
     int up;
     bool periodic;
 
-    // March the ray o + t d (index space, unit d) from t0 to t1, or, periodic, until it leaves
-    // the box downwards; returns the fraction of the ray's power that is left (fixed point).
+    // March the ray o + t d (index space, unit d) from t0 to t1, or, periodic, across the
+    // horizontal copies of the box until it leaves through the bottom; deposit what each voxel
+    // takes and return what is left of the ray's power (fixed point).
     int64_t march(const Vec3d& o, const Vec3d& d, double t0, double t1,
         VoxelIndex::Accessor& acc) const
     {
         int64_t left = int64_t(kFixed);
         double kept = 1.0;   // transmittance so far, in double; deposits are its decrements
-        Vec3d p = o + d * t0;
-        Coord cell;
-        Vec3d next, delta;
-        int stepOf[3];
-        for (int k = 0; k < 3; ++k) {
-            cell[k] = int(std::floor(p[k] + 0.5));
-            // The entry point lies on a cube face: nudge the cell along the ray, so the first
-            // cell is the one the ray enters, not the one it leaves.
-            if (std::abs(p[k] + 0.5 - std::round(p[k] + 0.5)) < 1e-9) {
-                cell[k] = int(std::round(p[k] + 0.5)) - (d[k] < 0.0 ? 1 : 0);
+        auto take = [&](int32_t i, double tIn, double tOut) {
+            const double after = kept * std::exp(-double(depth[size_t(i)]) * (tOut - tIn));
+            // Fixed-point share of this voxel; a ray whose power is spent deposits the rest
+            // here, so nothing is lost to rounding or underflow.
+            int64_t share = int64_t(std::llround((kept - after) * kFixed));
+            if (after * kFixed < 1.0 || share > left) share = left;
+            if (share > 0) {
+                deposited[size_t(i)].fetch_add(share, std::memory_order_relaxed);
+                left -= share;
             }
-            stepOf[k] = d[k] > 0.0 ? 1 : (d[k] < 0.0 ? -1 : 0);
-            const double boundary = cell[k] + 0.5 * stepOf[k];
-            next[k] = stepOf[k] != 0 ? t0 + (boundary - p[k]) / d[k]
-                                     : std::numeric_limits<double>::infinity();
-            delta[k] = stepOf[k] != 0 ? 1.0 / std::abs(d[k]) : 0.0;
+            kept = after;
+            return left > 0;
+        };
+        // marchVoxels works in cells [c, c + 1): half a voxel off index space.
+        Vec3d q = o + Vec3d(0.5);
+        if (!periodic) {
+            marchVoxels(acc, box, q, d, t0, t1, take);
+            return left;
         }
-        const int h1 = (up + 1) % 3, h2 = (up + 2) % 3;
-        const int period1 = hi[h1] - lo[h1] + 1, period2 = hi[h2] - lo[h2] + 1;
+        // One copy of the box at a time: where the ray leaves through a side, the origin moves
+        // back by one period, so the same t goes on in the copy it enters.
+        const Vec3d lo = box.min().asVec3d(), hi = (box.max() + openvdb::Coord(1)).asVec3d();
         double t = t0;
         while (left > 0) {
-            const int axis = next[0] <= next[1] ? (next[0] <= next[2] ? 0 : 2)
-                                                : (next[1] <= next[2] ? 1 : 2);
-            const double tExit = periodic ? next[axis] : std::min(next[axis], t1);
-            if (cell[up] < lo[up]) break;   // below the box: the rest is transmitted
-            Coord at = cell;
-            if (periodic) {
-                at[h1] = lo[h1] + (((cell[h1] - lo[h1]) % period1) + period1) % period1;
-                at[h2] = lo[h2] + (((cell[h2] - lo[h2]) % period2) + period2) % period2;
+            double tExit = std::numeric_limits<double>::infinity();
+            int axis = up;
+            for (int k = 0; k < 3; ++k) {
+                if (d[k] == 0.0) continue;
+                const double tk = ((d[k] > 0.0 ? hi[k] : lo[k]) - q[k]) / d[k];
+                if (tk < tExit) { tExit = tk; axis = k; }
             }
-            const int32_t i = acc.getValue(at);
-            if (i >= 0 && tExit > t) {
-                const double tau = double(depth[size_t(i)]) * (tExit - t);
-                const double after = kept * std::exp(-tau);
-                // Fixed-point share of this voxel; a ray whose power is spent deposits the rest
-                // here, so nothing is lost to rounding or underflow.
-                int64_t share = int64_t(std::llround((kept - after) * kFixed));
-                if (after * kFixed < 1.0 || share > left) share = left;
-                if (share > 0) {
-                    deposited[size_t(i)].fetch_add(share, std::memory_order_relaxed);
-                    left -= share;
-                }
-                kept = after;
-            }
-            if (!periodic && tExit >= t1) break;
-            t = next[axis];
-            next[axis] += delta[axis];
-            cell[axis] += stepOf[axis];
+            marchVoxels(acc, box, q, d, t, tExit, take);
+            if (axis == up) break;   // out through the bottom: the rest is transmitted
+            q[axis] -= (d[axis] > 0.0 ? 1.0 : -1.0) * (hi[axis] - lo[axis]);
+            t = tExit;
         }
         return left;
     }
@@ -119,7 +107,7 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const openvdb::CoordBBox box = voxels.bbox();
     const Vec3d lo = box.min().asVec3d() - Vec3d(0.5), hi = box.max().asVec3d() + Vec3d(0.5);
     std::vector<std::atomic<int64_t>> deposited(n);
-    const Marcher marcher{voxels, opticalDepth, deposited, box.min(), box.max(), up, periodic};
+    const Marcher marcher{opticalDepth, deposited, box, up, periodic};
     const double spacing = 1.0 / raysPerVoxel;
 
     // The ray grid: on the top face (periodic), or on the plane normal to the beam over the
