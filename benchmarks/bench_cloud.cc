@@ -5,7 +5,9 @@
 //
 //   build/benchmarks/bench_cloud [directions=300] [layers=20] [omega0=1] [width=4] [g=0] [order=8]
 //                                [csv=] (appends rows, with the photon Monte Carlo and delta-
-//                                Eddington albedos, for scripts/plot-cloud.py)
+//                                Eddington albedos, for scripts/plot-cloud.py; - for none)
+//                                [accelerate=none|anderson|both] (both: each slab is solved
+//                                plain, then with Anderson acceleration, in this process)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -17,6 +19,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <string>
+#include <vector>
 
 int
 main(int argc, char** argv)
@@ -28,14 +32,19 @@ main(int argc, char** argv)
     const int width = argc > 4 ? std::atoi(argv[4]) : 4;
     const double g = argc > 5 ? std::atof(argv[5]) : 0.0;
     const int order = argc > 6 ? std::atoi(argv[6]) : 8;
-    std::FILE* csv = argc > 7 ? std::fopen(argv[7], "a") : nullptr;
+    std::FILE* csv = argc > 7 && std::string(argv[7]) != "-" ? std::fopen(argv[7], "a") : nullptr;
+    const std::string accelerate = argc > 8 ? argv[8] : "none";
+    std::vector<vdbrad::Acceleration> modes;
+    if (accelerate != "anderson") modes.push_back(vdbrad::Acceleration::None);
+    if (accelerate != "none") modes.push_back(vdbrad::Acceleration::Anderson);
     if (csv && std::ftell(csv) == 0) {
         std::fprintf(csv, "g,tau,albedo,exact,monte_carlo,mc_stderr,delta_eddington,iterations,"
             "seconds,to1_iterations\n");
     }
     std::printf("periodic slab %d x %d x %d, HG g %.3f (order %d), omega0 %.3f, %d directions "
         "asked\n", width, layers, width, g, order, omega0, dirs);
-    std::printf("%6s %10s %10s %8s %10s %10s %10s %6s %8s %12s %12s\n", "tau", "albedo", "exact",
+    std::printf("%6s %9s %10s %10s %8s %10s %10s %10s %6s %8s %12s %12s\n", "tau", "accel",
+        "albedo", "exact",
         "error", "transmit", "absorb", "balance", "iters", "seconds", "ns/vox.dir", "to 1%: it/s");
     for (double tau : {0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0}) {
         const double h = 1.0 / layers;
@@ -60,6 +69,8 @@ main(int argc, char** argv)
         problem.omega0 = omega0;
         problem.g = g;
         const double exact = vdbrad::test::addingDoublingSlab(problem).reflectance;
+        for (const vdbrad::Acceleration mode : modes) {
+        o.accelerate = mode;
         const auto t0 = std::chrono::steady_clock::now();
         vdbrad::CloudTransfer transfer(cloud, o);
         // Iterate by hand to note when the albedo first comes (and stays) within 1% of exact.
@@ -90,11 +101,12 @@ main(int argc, char** argv)
                 vdbrad::test::deltaEddingtonAlbedo(tau, omega0, g, 1.0),
                 transfer.iterationCount(), s, within);
         }
-        std::printf("%6.1f %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.2e %6d %8.2f %12.1f %12s\n", tau,
-            b.albedo, exact, 100.0 * (b.albedo - exact) / exact,
+        std::printf("%6.1f %9s %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.2e %6d %8.2f %12.1f %12s\n",
+            tau, vdbrad::toString(mode), b.albedo, exact, 100.0 * (b.albedo - exact) / exact,
             b.transmittance, b.absorptance, b.balance(), transfer.iterationCount(), s,
             1e9 * s / (double(cloud.size()) * double(transfer.directions().size())
                 * transfer.iterationCount()), to1);
+        }
     }
     if (csv) std::fclose(csv);
     return 0;

@@ -4,7 +4,9 @@
 
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/MonteCarloSolver.h"
+#include "vdbrad/Checkpoint.h"
 #include "vdbrad/CloudTransfer.h"
+#include "vdbrad/GridIO.h"
 #include "vdbrad/ImageIO.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/Renderer.h"
@@ -14,8 +16,11 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <functional>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -134,6 +139,26 @@ forFile(const std::string& label, F&& f) -> decltype(f())
 const OptionSpec kQuiet{"quiet", OptionType::Flag, "", "", "no progress messages on stderr"};
 const OptionSpec kOverwrite{"overwrite", OptionType::Flag, "", "",
     "allow the output to replace an input file"};
+// Convergence acceleration, the same for solve and solve-cloud (Acceleration.h).
+const OptionSpec kAccelerate{"accelerate", OptionType::String, "none", "anderson",
+    "none, or anderson: Anderson mixing of the last --anderson-depth iterates (for albedos "
+    "near 1 and optically thick clouds: tens of sweeps instead of thousands)"};
+// Checkpoints (Checkpoint.h) and threads, the same for solve and solve-cloud.
+const OptionSpec kCheckpoint{"checkpoint", OptionType::String, "", "state.ckpt",
+    "save resumable state to this file every --checkpoint-every iterations (atomically; "
+    "removed once the output is written)"};
+const OptionSpec kCheckpointEvery{"checkpoint-every", OptionType::Int, "10", "5",
+    "iterations between checkpoints, >= 1"};
+const OptionSpec kResume{"resume", OptionType::String, "", "state.ckpt",
+    "continue the solve saved in this checkpoint (same input and solver options): the result "
+    "is bit-identical to an uninterrupted run"};
+const OptionSpec kMaxMemory{"max-memory", OptionType::String, "3/4 of RAM", "8G",
+    "refuse a solve whose estimated peak memory exceeds this (bytes, or with K, M, G, T: "
+    "binary units)"};
+const OptionSpec kThreads{"threads", OptionType::Int, "0", "2",
+    "worker threads (0: all cores); the result does not depend on it"};
+const OptionSpec kAndersonDepth{"anderson-depth", OptionType::Int, "16", "8",
+    "iterates --accelerate anderson mixes; it keeps 2 x depth + 2 copies of the solution"};
 
 std::vector<OptionSpec>
 sceneOptionSpecs()
@@ -190,7 +215,8 @@ formatBytes(double b)
     if (b < 1024) os << b << " B";
     else if (b < 1024 * 1024) os << b / 1024 << " KiB";
     else if (b < 1024.0 * 1024 * 1024) os << b / (1024 * 1024) << " MiB";
-    else os << b / (1024.0 * 1024 * 1024) << " GiB";
+    else if (b < 1024.0 * 1024 * 1024 * 1024) os << b / (1024.0 * 1024 * 1024) << " GiB";
+    else os << b / (1024.0 * 1024 * 1024 * 1024) << " TiB";
     return os.str();
 }
 
@@ -541,11 +567,28 @@ iterationLimits(const Arguments& a)
     return l;
 }
 
-// Iterate @a solver (RadiositySolver or MonteCarloSolver) to its tolerance or @a maxIterations,
-// one progress step per iteration reporting its residual.
+// --accelerate and --anderson-depth.
+void
+accelerationOptions(const Arguments& a, Acceleration& accelerate, int& depth)
+{
+    try {
+        accelerate = accelerationFromString(a.getString("accelerate"));
+    } catch (const std::exception& e) {
+        throw UsageError("--accelerate: " + errorMessage(e));
+    }
+    depth = a.getInt("anderson-depth");
+    if (depth < 1 || depth > 256) {
+        throw UsageError("--anderson-depth must be in [1, 256], got " + a.getString("anderson-depth"));
+    }
+}
+
+// Iterate @a solver (RadiositySolver, CloudTransfer or MonteCarloSolver) to its tolerance or
+// @a maxIterations, one progress step per iteration reporting its residual; @a after (if any)
+// runs after each iteration.
 template<typename SolverT>
 void
-iterateWithProgress(SolverT& solver, int maxIterations, ProgressInterrupter& progress)
+iterateWithProgress(SolverT& solver, int maxIterations, ProgressInterrupter& progress,
+    const std::function<void()>& after = {})
 {
     while (!solver.converged() && solver.iterationCount() < maxIterations) {
         const std::string step = "iteration " + std::to_string(solver.iterationCount() + 1);
@@ -553,8 +596,153 @@ iterateWithProgress(SolverT& solver, int maxIterations, ProgressInterrupter& pro
         std::ostringstream result;
         result << "residual " << solver.iterate(&progress);
         progress.end(result.str());
+        if (after) after();
     }
 }
+
+// Threads TBB will run with now (after any --threads limit).
+int
+workerThreads()
+{
+    return int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+}
+
+// Bytes this process holds now (resident set: the program, the input, the scene), or, where
+// /proc is missing, @a fallback.
+double
+residentBytes(double fallback)
+{
+    std::ifstream statm("/proc/self/statm");
+    double pages = 0.0, resident = 0.0;
+    if (statm >> pages >> resident) return resident * double(::sysconf(_SC_PAGE_SIZE));
+    return fallback;
+}
+
+// Bytes the input's grids hold in memory.
+size_t
+fileBytes(const VdbFile& file)
+{
+    size_t bytes = 0;
+    for (const auto& g : file.grids) bytes += size_t(g->memUsage());
+    return bytes;
+}
+
+// --threads: a TBB limit for the rest of the command (null: all cores).
+std::unique_ptr<tbb::global_control>
+threadLimit(const Arguments& a)
+{
+    const int threads = a.getInt("threads");
+    if (threads < 0) throw UsageError("--threads must be >= 0 (0: all cores)");
+    if (threads == 0) return nullptr;
+    return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+        size_t(threads));
+}
+
+// --max-memory: bytes, given ("512M", "8G", "1.5T", "1000000") or 3/4 of physical memory.
+double
+memoryLimit(const Arguments& a)
+{
+    if (!a.has("max-memory")) {
+        const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGE_SIZE);
+        return pages > 0 && size > 0 ? 0.75 * double(pages) * double(size) : 1e300;
+    }
+    const std::string text = a.getString("max-memory");
+    char* end = nullptr;
+    double v = std::strtod(text.c_str(), &end);
+    std::string unit(end ? end : "");
+    if (!unit.empty() && (unit.back() == 'B' || unit.back() == 'b')) unit.pop_back();
+    if (unit.size() > 1 && (unit.back() == 'i' || unit.back() == 'I')) unit.pop_back();
+    const std::string units = "KMGT";
+    if (unit.size() == 1 && units.find(char(std::toupper(unit[0]))) != std::string::npos) {
+        v *= std::pow(1024.0, double(units.find(char(std::toupper(unit[0]))) + 1));
+    } else if (!unit.empty()) {
+        v = -1.0;
+    }
+    if (end == text.c_str() || !(v > 0.0) || !std::isfinite(v)) {
+        throw UsageError("--max-memory: '" + text + "' is not a size (e.g. 8G, 512M, 1000000)");
+    }
+    return v;
+}
+
+// The estimated peak (what the process holds now plus what the solver will allocate), as a line
+// to print; refuses to go on past --max-memory, before the solver allocates anything.
+std::string
+checkMemory(const Arguments& a, const std::string& label, double held, double solver)
+{
+    const double limit = memoryLimit(a), peak = held + solver;
+    if (peak > limit) {
+        throw UserError(label + ": the solve needs about " + formatBytes(peak)
+            + " of memory, over the " + formatBytes(limit) + " allowed (--max-memory; fewer "
+            "voxels or directions, or no --accelerate, need less)");
+    }
+    return "memory: about " + formatBytes(peak) + " at peak (held now " + formatBytes(held)
+        + ", solver " + formatBytes(solver) + "; limit " + formatBytes(limit) + ")\n";
+}
+
+// --checkpoint FILE --checkpoint-every K and --resume FILE.
+struct Checkpointing
+{
+    std::string save, resume;
+    int every = 10;
+
+    Checkpointing(const Arguments& a, const std::string& in, const std::string& out)
+    {
+        if (a.has("checkpoint")) save = a.getString("checkpoint");
+        if (a.has("resume")) resume = a.getString("resume");
+        every = a.getInt("checkpoint-every");
+        if (a.has("checkpoint") && save.empty()) throw UsageError("--checkpoint needs a file");
+        if (a.has("resume") && resume.empty()) throw UsageError("--resume needs a file");
+        if (every < 1) throw UsageError("--checkpoint-every must be >= 1");
+        if (a.has("checkpoint-every") && save.empty()) {
+            throw UsageError("--checkpoint-every needs --checkpoint FILE");
+        }
+        for (const std::string& f : {save, resume}) {
+            if (!f.empty() && (f == in || f == out || isStdin(f) || isStdout(f))) {
+                throw UsageError("a checkpoint must be its own file, not '" + f + "'");
+            }
+        }
+    }
+
+    // Restore @a solver from --resume, if given.
+    template<typename SolverT> void restore(SolverT& solver) const
+    {
+        if (resume.empty()) return;
+        std::ifstream f(resume, std::ios::binary);
+        if (!f.is_open()) throw UserError(resume + ": cannot open the checkpoint");
+        std::ostringstream bytesIn;
+        bytesIn << f.rdbuf();
+        if (f.bad()) throw UserError(resume + ": cannot read the checkpoint");
+        const std::string bytes = bytesIn.str();
+        try {
+            solver.restoreState(SolverState::parse(bytes, solver.fingerprint()));
+        } catch (const std::exception& e) {
+            throw UserError(resume + ": " + errorMessage(e));
+        }
+    }
+
+    // After an iteration: save every @a every iterations (not once converged: the output
+    // follows at once).
+    template<typename SolverT> std::function<void()> saver(const SolverT& solver) const
+    {
+        if (save.empty()) return {};
+        return [this, &solver] {
+            if (solver.iterationCount() % every != 0 || solver.converged()) return;
+            SolverState state;
+            solver.saveState(state);
+            try {
+                writeFileAtomic(save, state.serialize(solver.fingerprint()));
+            } catch (const std::exception& e) {
+                throw UserError(save + ": " + errorMessage(e));
+            }
+        };
+    }
+
+    // Once the output is written the checkpoint has served.
+    void finish() const
+    {
+        if (!save.empty()) std::remove(save.c_str());
+    }
+};
 
 int
 runSolve(const Arguments& a)
@@ -587,20 +775,26 @@ runSolve(const Arguments& a)
     else {
         throw UsageError("--update must be jacobi, inplace or progressive, got '" + update + "'");
     }
+    accelerationOptions(a, o.accelerate, o.andersonDepth);
+    if (o.accelerate != Acceleration::None) {
+        if (o.update == UpdateScheme::Progressive) {
+            throw UsageError("--accelerate needs --update jacobi or inplace, not progressive");
+        }
+        if (method == "montecarlo") throw UsageError("--accelerate does not apply to --method montecarlo");
+    }
     const std::string lines = a.getString("lines");
     if (lines == "naive") o.lines = LineType::Naive;
     else if (lines == "standard") o.lines = LineType::Standard;
     else throw UsageError("--lines must be naive or standard, got '" + lines + "'");
     if (!(o.occlusionDepth > 0.f)) throw UsageError("--occlusion-depth must be > 0");
-    const int threads = a.getInt("threads");
-    if (threads < 0) throw UsageError("--threads must be >= 0 (0: all cores)");
+    const Checkpointing checkpoints(a, in, out);
+    memoryLimit(a);   // a bad --max-memory is a usage error before any work
+    if (method == "montecarlo" && (!checkpoints.save.empty() || !checkpoints.resume.empty())) {
+        throw UsageError("--checkpoint and --resume do not apply to --method montecarlo");
+    }
+    const std::unique_ptr<tbb::global_control> limit = threadLimit(a);
     checkOutput(out, {in}, a.flag("overwrite"));
 
-    std::unique_ptr<tbb::global_control> limit;
-    if (threads > 0) {
-        limit.reset(new tbb::global_control(tbb::global_control::max_allowed_parallelism,
-            size_t(threads)));
-    }
     const VdbFile file = readInput(in);
     const std::string label = inputLabel(in);
     const bool quiet = a.flag("quiet");
@@ -619,18 +813,25 @@ runSolve(const Arguments& a)
         writeOutput(withGrids(file, solver.grids()), out);
         return 0;
     }
+    const std::string memory = checkMemory(a, label,
+        residentBytes(double(fileBytes(file) + scene.memUsage())),
+        double(RadiositySolver::memoryEstimate(scene, o, workerThreads())));
     RadiositySolver solver(scene, o);
+    checkpoints.restore(solver);   // before any message: a refused checkpoint is one line
     if (!quiet) {
-        std::cerr << "solving " << withCommas(scene.size()) << " voxels, "
+        std::cerr << memory << "solving " << withCommas(scene.size()) << " voxels, "
                   << solver.directions().size() << " directions (nearest to " << o.directions
-                  << "), " << lines << " lines" << (scene.isRgb() ? ", RGB" : "") << "\n";
+                  << "), " << lines << " lines" << (scene.isRgb() ? ", RGB" : "")
+                  << (o.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
+                  << "\n";
     }
-    iterateWithProgress(solver, o.maxIterations, progress);
+    iterateWithProgress(solver, o.maxIterations, progress, checkpoints.saver(solver));
     if (!quiet && !solver.converged()) {
         warn(label, "stopped at --iterations " + std::to_string(o.maxIterations)
             + " with residual " + std::to_string(solver.residuals().back()) + " > --tolerance");
     }
     writeOutput(withGrids(file, {solver.grid()}), out);
+    checkpoints.finish();
     return 0;
 }
 
@@ -805,6 +1006,10 @@ runSolveCloud(const Arguments& a)
     if (o.phaseOrder < 0 || o.phaseOrder > 32) {
         throw UsageError("--phase-order must be in [0, 32], got " + a.getString("phase-order"));
     }
+    accelerationOptions(a, o.accelerate, o.andersonDepth);
+    const Checkpointing checkpoints(a, in, out);
+    memoryLimit(a);
+    const std::unique_ptr<tbb::global_control> limit = threadLimit(a);
     checkOutput(out, {in}, a.flag("overwrite"));
 
     const VdbFile file = readInput(in);
@@ -812,13 +1017,19 @@ runSolveCloud(const Arguments& a)
     const bool quiet = a.flag("quiet");
     ProgressInterrupter progress(quiet);
     const Cloud cloud = forFile(label, [&] { return buildCloud(file.grids, cloudOpts, &progress); });
+    const std::string memory = checkMemory(a, label,
+        residentBytes(double(fileBytes(file) + cloud.memUsage())),
+        double(CloudTransfer::memoryEstimate(cloud, o, workerThreads())));
     CloudTransfer transfer = forFile(label, [&] { return CloudTransfer(cloud, o, &progress); });
+    checkpoints.restore(transfer);
     if (!quiet) {
-        std::cerr << "cloud: " << withCommas(cloud.size()) << " voxels, "
+        std::cerr << memory << "cloud: " << withCommas(cloud.size()) << " voxels, "
                   << transfer.directions().size() << " directions (nearest to " << o.directions
-                  << "), " << (o.periodic ? "periodic" : "open") << " boundaries\n";
+                  << "), " << (o.periodic ? "periodic" : "open") << " boundaries"
+                  << (o.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
+                  << "\n";
     }
-    iterateWithProgress(transfer, o.maxIterations, progress);
+    iterateWithProgress(transfer, o.maxIterations, progress, checkpoints.saver(transfer));
     const CloudBudget& b = transfer.budget();
     if (!quiet) {
         std::cerr << "albedo " << b.albedo << ", transmittance " << b.transmittance
@@ -831,6 +1042,7 @@ runSolveCloud(const Arguments& a)
         }
     }
     writeOutput(withGrids(file, {transfer.grid(name)}), out);
+    checkpoints.finish();
     return 0;
 }
 
@@ -946,9 +1158,8 @@ commands()
                     "digital lines: naive (26-connected) or standard (6-connected)"},
                 {"occlusion-depth", OptionType::Float, "1", "1.5",
                     "voxels: a receiver this far behind the wall voxel before it is hidden"},
-                {"threads", OptionType::Int, "0", "2", "worker threads (0: all cores); the "
-                    "result does not depend on it"},
-                kOverwrite, kQuiet}),
+                kAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
+                kMaxMemory, kOverwrite, kQuiet}),
             {"vdbrad make cornell - | vdbrad solve - cornell_lit.vdb --directions 1000",
                 "vdbrad solve scene.vdb out.vdb --lines standard --tolerance 1e-4"},
             runSolve},
@@ -979,6 +1190,8 @@ commands()
                 {"iterations", OptionType::Int, "1000", "100", "source-iteration cap, >= 1"},
                 {"tolerance", OptionType::Float, "1e-6", "1e-4",
                     "stop when max|J' - J| / max|J'| falls below this"},
+                kAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
+                kMaxMemory,
                 {"output-name", OptionType::String, "mean_intensity", "scatter",
                     "name of the output grid (e.g. `scatter` for Houdini volume shaders)"},
                 kOverwrite, kQuiet},

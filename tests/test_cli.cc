@@ -7,7 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <cstring>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -283,6 +286,185 @@ TEST_F(CliTest, SolveWritesRadiosityWithMetadataAndPassesGridsThrough)
     EXPECT_NE(info.out.find("radiosity: float, values in [2, 2], directions 45"),
         std::string::npos) << info.out;
     EXPECT_EQ(info.out.find("passed through: 'radiosity'"), std::string::npos) << info.out;
+}
+
+TEST_F(CliTest, AccelerateSolvesAFurnaceAtAlbedo0999InFewIterations)
+{
+    // --accelerate anderson: rho = 0.999 (plain sweeps: ~10^4 iterations) to 1e-4 relative of
+    // E / (1 - rho) = 1000 within 60 iterations; misuse is refused before any work.
+    const Result r = sh("vdbrad make furnace-sphere - --res 16 --albedo 0.999 --quiet | "
+                        "vdbrad solve - out.vdb --directions 50 --tolerance 1e-8 --iterations 60 "
+                        "--accelerate anderson");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find("Anderson acceleration"), std::string::npos) << r.err;
+    const VdbFile out = readVdbFile(path("out.vdb"));
+    auto g = openvdb::GridBase::constGrid<openvdb::FloatGrid>(findGrid(out.grids, "radiosity"));
+    ASSERT_TRUE(g);
+    for (auto it = g->cbeginValueOn(); it; ++it) ASSERT_NEAR(*it, 1000.f, 0.1f);
+    EXPECT_LE(g->metaValue<int32_t>("vdbrad:iterations"), 60);
+    for (const char* bad : {"--accelerate krylov", "--accelerate anderson --update progressive",
+             "--accelerate anderson --anderson-depth 0",
+             "--accelerate anderson --method montecarlo"}) {
+        const Result e = sh(std::string("vdbrad make furnace-box fb.vdb --res 8 --quiet && "
+                                        "vdbrad solve fb.vdb out2.vdb ") + bad);
+        EXPECT_EQ(e.status, 2) << bad;
+        EXPECT_EQ(e.errLines().size(), 1u) << bad << ": " << e.err;
+        EXPECT_TRUE(e.err.find("--accelerate") != std::string::npos
+            || e.err.find("--anderson-depth") != std::string::npos) << bad << ": " << e.err;
+        EXPECT_FALSE(exists(path("out2.vdb"))) << bad;
+    }
+}
+
+// The raw bits of every active value of grid @a name in the .vdb file at @a file, in tree order.
+std::vector<uint32_t>
+valueBits(const std::string& file, const std::string& name)
+{
+    const VdbFile f = readVdbFile(file);
+    const openvdb::GridBase::ConstPtr g = findGrid(f.grids, name);
+    std::vector<uint32_t> bits;
+    auto add = [&](const float* v, size_t n) {
+        for (size_t k = 0; k < n; ++k) {
+            uint32_t b;
+            std::memcpy(&b, v + k, 4);
+            bits.push_back(b);
+        }
+    };
+    if (auto fg = openvdb::GridBase::constGrid<openvdb::FloatGrid>(g)) {
+        for (auto it = fg->cbeginValueOn(); it; ++it) add(&*it, 1);
+    } else if (auto vg = openvdb::GridBase::constGrid<openvdb::Vec3SGrid>(g)) {
+        for (auto it = vg->cbeginValueOn(); it; ++it) add(it->asPointer(), 3);
+    }
+    return bits;
+}
+
+TEST_F(CliTest, SolveAndSolveCloudGiveTheSameBitsOnOneTwoAndEightThreads)
+{
+    ASSERT_EQ(sh("vdbrad make cornell c.vdb --res 16 --quiet && "
+                 "vdbrad make cumulus k.vdb --res 24 --quiet").status, 0);
+    std::vector<uint32_t> solve, cloud;
+    for (int t : {1, 2, 8}) {
+        const std::string T = std::to_string(t);
+        const Result r = sh("vdbrad solve c.vdb s" + T + ".vdb --directions 60 --iterations 6 "
+            "--quiet --threads " + T + " && vdbrad solve-cloud k.vdb k" + T + ".vdb "
+            "--directions 60 --iterations 6 --accelerate anderson --quiet --threads " + T);
+        ASSERT_EQ(r.status, 0) << r.err;
+        const auto s = valueBits(path("s" + T + ".vdb"), "radiosity");
+        const auto k = valueBits(path("k" + T + ".vdb"), "mean_intensity");
+        ASSERT_FALSE(s.empty());
+        ASSERT_FALSE(k.empty());
+        if (solve.empty()) {
+            solve = s;
+            cloud = k;
+        } else {
+            EXPECT_TRUE(s == solve) << T << " threads";
+            EXPECT_TRUE(k == cloud) << T << " threads";
+        }
+    }
+}
+
+TEST_F(CliTest, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits)
+{
+    // Each run is killed (SIGTERM) once its first checkpoint exists, then resumed to the same
+    // iteration count as an uninterrupted run: identical values, for surfaces (in-place and
+    // Anderson) and clouds (Anderson); the killed run leaves no output.
+    ASSERT_EQ(sh("vdbrad make cornell c.vdb --res 40 --quiet && "
+                 "vdbrad make slab k.vdb --res 24 --tau 20 --quiet").status, 0);
+    const struct { const char* command; const char* options; const char* grid; } cases[] = {
+        {"solve c.vdb", "--directions 200 --tolerance 0", "radiosity"},
+        {"solve c.vdb", "--directions 200 --tolerance 0 --accelerate anderson", "radiosity"},
+        {"solve-cloud k.vdb", "--directions 300 --tolerance 0 --periodic --accelerate anderson",
+            "mean_intensity"},
+    };
+    for (const auto& c : cases) {
+        // The binary itself (not the fixture's shell function) runs in the background, so that
+        // $! is the tool's own process.
+        const std::string run = std::string("'" VDBRAD_CLI_PATH "' ") + c.command + " ";
+        const Result full = sh(run + "full.vdb --iterations 12 --quiet " + c.options);
+        ASSERT_EQ(full.status, 0) << full.err;
+        const Result killed = sh("rm -f ck part.vdb; " + run + "part.vdb --iterations 1000 "
+            "--checkpoint ck --checkpoint-every 3 --quiet " + c.options + " & pid=$!; "
+            "for i in $(seq 600); do [ -e ck ] && break; sleep 0.05; done; "
+            "kill -TERM $pid; wait $pid; echo \"status $?\"");
+        EXPECT_NE(killed.out.find("status 130"), std::string::npos) << c.options << ": "
+            << killed.out << killed.err;
+        EXPECT_NE(killed.err.find("cancelled"), std::string::npos) << killed.err;
+        EXPECT_FALSE(exists(path("part.vdb"))) << c.options;
+        ASSERT_TRUE(exists(path("ck"))) << c.options;
+        const Result resumed = sh(run + "resumed.vdb --iterations 12 --resume ck --quiet "
+            + c.options);
+        ASSERT_EQ(resumed.status, 0) << resumed.err;
+        const auto a = valueBits(path("full.vdb"), c.grid);
+        const auto b = valueBits(path("resumed.vdb"), c.grid);
+        ASSERT_FALSE(a.empty());
+        EXPECT_TRUE(a == b) << c.options;
+        const VdbFile r = readVdbFile(path("resumed.vdb"));
+        EXPECT_EQ(findGrid(r.grids, c.grid)->metaValue<int32_t>("vdbrad:iterations"), 12);
+    }
+    // A checkpoint is refused, in one line and before any output, when it is truncated, of
+    // another problem, or not a checkpoint.
+    ASSERT_EQ(sh("rm -f ck; '" VDBRAD_CLI_PATH "' solve c.vdb x.vdb --directions 60 "
+                 "--iterations 100 "
+                 "--tolerance 0 --checkpoint ck --checkpoint-every 2 --quiet & pid=$!; "
+                 "for i in $(seq 600); do [ -e ck ] && break; sleep 0.05; done; "
+                 "kill -TERM $pid; wait $pid; "
+                 "head -c 1000 ck > truncated; echo hello > bogus").status, 0);
+    const struct { const char* args; const char* message; } bad[] = {
+        {"c.vdb y.vdb --directions 60 --resume truncated", "truncated checkpoint"},
+        {"c.vdb y.vdb --directions 60 --resume bogus", "not a vdbrad checkpoint"},
+        {"c.vdb y.vdb --directions 61 --resume ck", "another input or other solver options"},
+        {"c.vdb y.vdb --directions 60 --resume missing", "cannot open"},
+        {"c.vdb y.vdb --checkpoint-every 3", "--checkpoint-every needs --checkpoint"},
+        {"c.vdb y.vdb --checkpoint c.vdb", "its own file"},
+    };
+    for (const auto& b : bad) {
+        const Result r = sh(std::string("vdbrad solve ") + b.args);
+        EXPECT_NE(r.status, 0) << b.args;
+        EXPECT_LT(r.status, 128) << b.args;
+        EXPECT_EQ(r.errLines().size(), 1u) << b.args << ": " << r.err;
+        EXPECT_NE(r.err.find(b.message), std::string::npos) << b.args << ": " << r.err;
+        EXPECT_FALSE(exists(path("y.vdb"))) << b.args;
+    }
+}
+
+TEST_F(CliTest, MemoryEstimateIsPrintedMatchesThePeakAndRefusesOverTheLimit)
+{
+    // The printed estimate against the measured peak (GNU time's maximum resident set, which
+    // also holds the program and its libraries, ~30 MiB): within -20% / +50%, for a surface and
+    // a cloud solve.
+    ASSERT_EQ(sh("vdbrad make cornell c.vdb --res 160 --quiet && "
+                 "vdbrad make cumulus k.vdb --res 64 --quiet").status, 0);
+    for (const char* run : {"solve c.vdb o.vdb --directions 20 --iterations 1",
+             "solve-cloud k.vdb o.vdb --directions 100 --iterations 1 --g 0.8 --phase-order 4 "
+             "--accelerate anderson"}) {
+        const Result r = sh(std::string("/usr/bin/time -f 'peak %M' '" VDBRAD_CLI_PATH "' ")
+            + run + " 2>&1 | grep -E '^(memory|peak)'");
+        ASSERT_EQ(r.status, 0) << r.out << r.err;
+        double estimate = 0.0, peakKiB = 0.0;
+        char unit[8] = {0};
+        const size_t m = r.out.find("memory: about "), p = r.out.rfind("peak ");
+        ASSERT_NE(m, std::string::npos) << r.out;
+        ASSERT_NE(p, std::string::npos) << r.out;
+        ASSERT_EQ(std::sscanf(r.out.c_str() + m, "memory: about %lf %3s", &estimate, unit), 2);
+        ASSERT_EQ(std::sscanf(r.out.c_str() + p, "peak %lf", &peakKiB), 1);
+        const std::string u(unit);
+        estimate *= u == "GiB" ? 1024.0 * 1024.0 : u == "MiB" ? 1024.0 : u == "KiB" ? 1.0 : 0.0;
+        std::cout << run << ": estimate " << estimate / 1024 << " MiB, peak " << peakKiB / 1024
+                  << " MiB\n";
+        EXPECT_GT(peakKiB, 0.8 * estimate) << run;
+        EXPECT_LT(peakKiB, 1.5 * estimate) << run;
+    }
+    for (const char* run : {"solve c.vdb refused.vdb --max-memory 20M",
+             "solve-cloud k.vdb refused.vdb --max-memory 1M"}) {
+        const Result r = sh(std::string("vdbrad ") + run);
+        EXPECT_EQ(r.status, 1) << run;
+        EXPECT_EQ(r.errLines().size(), 1u) << r.err;
+        EXPECT_NE(r.err.find("over the"), std::string::npos) << r.err;
+        EXPECT_NE(r.err.find("--max-memory"), std::string::npos) << r.err;
+        EXPECT_FALSE(exists(path("refused.vdb")));
+    }
+    const Result bad = sh("vdbrad solve c.vdb refused.vdb --max-memory lots");
+    EXPECT_EQ(bad.status, 2);
+    EXPECT_NE(bad.err.find("--max-memory"), std::string::npos) << bad.err;
 }
 
 TEST_F(CliTest, RayCastMethodGivesTheSweepsRadiosity)

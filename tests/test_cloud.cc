@@ -230,6 +230,51 @@ TEST_F(CloudTest, ConservativeSlabAgreesWithTheExactSolution)
     EXPECT_NEAR(transfer.budget().transmittance, exact.transmittance, 0.003);
 }
 
+TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
+{
+    // Issue 8's goal: conservative (omega0 = 1) slab of optical depth 50, albedo within 1% of the
+    // exact one (adding-doubling, 0.967354) in <= 60 sweeps. Source iteration's spectral radius
+    // is ~1 - O(1 / tau^2) there: plain sweeps need ~2,400 iterations; Anderson mixing of the
+    // moments removes the few slow diffusion modes. 50 layers (voxel depth 1; at depth 2.5 the
+    // converged discretisation error alone is -2.1%), 303 directions, isotropic and HG g = 0.85.
+    // Measured after 60 sweeps: isotropic -0.47%, g = 0.85 +0.22%; plain sweeps -19%.
+    const Cloud cloud = slab(2, 50, 2, 50.0, 1.f);
+    for (double g : {0.0, 0.85}) {
+        CloudTransferOptions o;
+        o.periodic = true;
+        o.directions = 300;
+        o.tolerance = 0.0;
+        o.maxIterations = 60;
+        o.phase = PhaseFunction::henyeyGreenstein(g);
+        test::SlabProblem problem;
+        problem.tau = 50.0;
+        problem.g = g;
+        const double exact = test::addingDoublingSlab(problem).reflectance;
+        double albedo[2] = {0.0, 0.0};
+        for (Acceleration a : {Acceleration::None, Acceleration::Anderson}) {
+            if (a == Acceleration::None && g != 0.0) continue;   // once is enough to show it
+            o.accelerate = a;
+            CloudTransfer transfer(cloud, o);
+            transfer.solve();
+            EXPECT_EQ(transfer.iterationCount(), 60);
+            albedo[a == Acceleration::Anderson] = transfer.budget().albedo;
+            if (a == Acceleration::Anderson) {
+                // Converged, the balance closes to 1e-4 (EnergyBalancesOpenAndPeriodic); after
+                // 60 sweeps it measures what is left to converge (g = 0.85: 1.4e-4).
+                EXPECT_NEAR(transfer.budget().balance(), 0.0, 5e-4) << g;
+                for (float J : transfer.meanIntensity()) ASSERT_TRUE(std::isfinite(J) && J > 0.f);
+            }
+        }
+        std::printf("tau 50, g %.2f, 60 sweeps: albedo Anderson %.5f, exact %.5f (plain: %.5f)\n",
+            g, albedo[1], exact, albedo[0]);
+        EXPECT_NEAR(albedo[1], exact, 0.01 * exact) << g;
+        // Without acceleration the same 60 sweeps are far off (the test can fail).
+        if (g == 0.0) {
+            EXPECT_LT(albedo[0], 0.9 * exact);
+        }
+    }
+}
+
 TEST_F(CloudTest, ResultsDoNotDependOnThreads)
 {
     const Cloud cloud = slab(9, 7, 8, 2.0, 0.9f);
@@ -238,18 +283,152 @@ TEST_F(CloudTest, ResultsDoNotDependOnThreads)
     o.sunZenith = 50.0;
     o.directions = 111;
     o.maxIterations = 5;
-    std::vector<float> reference;
-    for (int threads : {1, 2, 8}) {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    for (Acceleration a : {Acceleration::None, Acceleration::Anderson}) {
+        o.accelerate = a;
+        std::vector<float> reference;
+        for (int threads : {1, 2, 8}) {
+            tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                size_t(threads));
+            CloudTransfer transfer(cloud, o);
+            transfer.solve();
+            const std::vector<float> J = transfer.meanIntensity();
+            if (reference.empty()) {
+                reference = J;
+            } else {
+                ASSERT_EQ(J.size(), reference.size());
+                for (size_t i = 0; i < J.size(); ++i) {
+                    ASSERT_EQ(J[i], reference[i]) << threads << " anderson " << int(a);
+                }
+            }
+        }
+    }
+}
+
+// Issue 8, extremes: per-voxel optical depths from 1e-8 to 1e4 (20 layers, sun at the zenith,
+// Anderson). Always: no NaN, no Inf, no negative intensity, and the energy balance closes
+// (relative to what the medium takes out of the beam, so that a thin layer's scattered light
+// cannot vanish unnoticed). Thin layers (open 4 x 20 x 4 box: the direction set is symmetric,
+// so single scattering sends exactly half of the scattered light up): R = omega0 tau / 2 and
+// A = (1 - omega0) tau to O(tau^2 ln tau). (A thin *periodic* slab keeps the light scattered
+// into exactly horizontal directions wrapping for ~1 / tau sweeps: README, "Not yet".) Opaque
+// voxels (1e4, periodic): the beam stops in the top voxel and an absorbing slab transmits
+// nothing. A conservative slab of opaque voxels is a diffusion problem whose voxels exchange
+// light at a rate 1 / tau: no sweep iteration converges on it in 200 sweeps (README, "Not
+// yet"); it must stay finite and non-negative.
+TEST_F(CloudTest, OpticalDepthsFrom1eMinus8To1e4PerVoxel)
+{
+    for (double perVoxel : {1e-8, 1e-4, 1.0, 100.0, 1e4}) {
+        for (float omega : {0.5f, 1.f}) {
+            const double tau = 20.0 * perVoxel;
+            const bool thin = perVoxel < 1e-3;
+            const Cloud cloud = thin ? slab(4, 20, 4, tau, omega) : slab(2, 20, 2, tau, omega);
+            CloudTransferOptions o;
+            o.periodic = !thin;
+            o.directions = 111;
+            o.tolerance = thin ? 1e-10 : 1e-7;
+            o.maxIterations = 200;
+            o.accelerate = Acceleration::Anderson;
+            CloudTransfer transfer(cloud, o);
+            transfer.solve();
+            const CloudBudget& b = transfer.budget();
+            const double lost = -std::expm1(-tau);
+            std::printf("tau/voxel %g omega %.1f: %d sweeps, R %.6g T %.6g A %.6g balance %.2g"
+                " (%.2g of the beam's loss)\n", perVoxel, omega, transfer.iterationCount(),
+                b.albedo, b.transmittance, b.absorptance, b.balance(), b.balance() / lost);
+            for (float J : transfer.meanIntensity()) {
+                ASSERT_TRUE(std::isfinite(J) && J >= 0.f) << perVoxel << " " << omega;
+            }
+            const bool opaqueConservative = perVoxel >= 100.0 && omega == 1.f;
+            if (!opaqueConservative) {
+                EXPECT_TRUE(transfer.converged()) << perVoxel << " " << omega;
+                EXPECT_NEAR(b.balance(), 0.0, std::min(1e-5, 1e-3 * lost)) << perVoxel;
+            }
+            if (thin) {
+                EXPECT_NEAR(b.albedo, 0.5 * omega * lost, 0.02 * 0.5 * omega * lost) << perVoxel;
+                EXPECT_NEAR(b.absorptance, (1.0 - omega) * lost, 0.02 * lost) << perVoxel;
+            }
+            if (perVoxel >= 100.0) {
+                EXPECT_EQ(b.directTransmittance, 0.0);
+                if (omega < 1.f) {
+                    EXPECT_LT(b.transmittance, 1e-6) << perVoxel;
+                }
+            }
+        }
+    }
+}
+
+// Issue 8, extremes: Henyey-Greenstein g from -0.99 (backward) to 0.99 (forward) against the
+// exact slab (adding-doubling), tau = 2, omega0 = 0.9, 4 x 10 x 4 voxels, order 8 with delta-M.
+// Forward peaks: within 3% (plus 1e-3 absolute for the tiny albedo at g = 0.99). A backward
+// peak has no delta-M: order 8 keeps only its first moments, and the retro-reflected light
+// beyond them is lost to the truncation (measured at g = -0.99: albedo +5%, transmittance -32%;
+// README "Not yet"): there only stability and the energy balance are asserted.
+TEST_F(CloudTest, AsymmetryFromMinus099To099AgreesWithTheExactSlab)
+{
+    const Cloud cloud = slab(4, 10, 4, 2.0, 0.9f);
+    for (double g : {-0.99, 0.0, 0.85, 0.99}) {
+        CloudTransferOptions o;
+        o.periodic = true;
+        o.directions = 300;
+        o.tolerance = 1e-7;
+        o.maxIterations = 600;
+        o.accelerate = Acceleration::Anderson;
+        o.phase = PhaseFunction::henyeyGreenstein(g);
         CloudTransfer transfer(cloud, o);
         transfer.solve();
-        const std::vector<float> J = transfer.meanIntensity();
-        if (reference.empty()) {
-            reference = J;
-        } else {
-            ASSERT_EQ(J.size(), reference.size());
-            for (size_t i = 0; i < J.size(); ++i) ASSERT_EQ(J[i], reference[i]) << threads;
+        test::SlabProblem problem;
+        problem.tau = 2.0;
+        problem.omega0 = 0.9;
+        problem.g = g;
+        const test::SlabResult exact = test::addingDoublingSlab(problem);
+        const CloudBudget& b = transfer.budget();
+        std::printf("g %+.2f: %d sweeps, R %.5f (exact %.5f) T %.5f (exact %.5f) balance %.2g\n",
+            g, transfer.iterationCount(), b.albedo, exact.reflectance, b.transmittance,
+            exact.transmittance, b.balance());
+        EXPECT_TRUE(transfer.converged()) << g;
+        for (float J : transfer.meanIntensity()) ASSERT_TRUE(std::isfinite(J) && J >= 0.f) << g;
+        EXPECT_NEAR(b.balance(), 0.0, 1e-5) << g;
+        if (g < 0.0) continue;
+        EXPECT_NEAR(b.albedo, exact.reflectance, 0.03 * exact.reflectance + 1e-3) << g;
+        EXPECT_NEAR(b.transmittance, exact.transmittance, 0.03 * exact.transmittance) << g;
+    }
+}
+
+// Issue 8, extremes: a cloud's optics depend on extinction x length only. The same optical
+// depths at 2e-5 and 1e6 world units per voxel (OpenVDB's smallest voxel is 1.44e-5) give the
+// same intensities (to float rounding of the stored densities), and the beam's irradiance
+// scales them linearly from 1e-30 to 1e30.
+TEST_F(CloudTest, VoxelSizeAndIrradianceScaleOut)
+{
+    CloudTransferOptions o;
+    o.periodic = true;
+    o.sunZenith = 30.0;
+    o.directions = 111;
+    o.maxIterations = 10;
+    o.tolerance = 0.0;
+    o.accelerate = Acceleration::Anderson;
+    auto solve = [&](double h, double irradiance) {
+        CloudTransferOptions oo = o;
+        oo.irradiance = irradiance;
+        CloudTransfer transfer(slab(3, 8, 3, 4.0, 0.95f, h), oo);
+        transfer.solve();
+        return transfer.meanIntensity();
+    };
+    const std::vector<float> unit = solve(0.1, 1.0);
+    float top = 0.f;
+    for (float J : unit) top = std::max(top, J);
+    for (auto [h, f] : {std::pair<double, double>{2e-5, 1.0}, {1e6, 1.0}, {0.1, 1e-30},
+             {0.1, 1e30}, {0.1, 0x1p-100}}) {
+        const std::vector<float> J = solve(h, f);
+        ASSERT_EQ(J.size(), unit.size());
+        double worst = 0.0;
+        for (size_t i = 0; i < J.size(); ++i) {
+            ASSERT_TRUE(std::isfinite(J[i]) && J[i] > 0.f) << h << " " << f;
+            worst = std::max(worst, std::abs(double(J[i]) / f - double(unit[i])) / top);
         }
+        std::printf("voxel size %g, irradiance %g: max |J / F0 - J1| / max J1 = %.2g\n", h, f,
+            worst);
+        EXPECT_LT(worst, 1e-5) << h << " " << f;
     }
 }
 

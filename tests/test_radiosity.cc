@@ -101,6 +101,173 @@ TEST_F(RadiosityTest, FurnacesAreExactForEveryAlbedo)
     }
 }
 
+// A linear map T x + b with T = S D S^-1 (D: 5 distinct eigenvalues up to 0.99, S = I + N,
+// N a random superdiagonal, so T is not normal): Anderson mixing with depth >= 5 solves it in
+// about 6 steps (the GMRES property: T's minimal polynomial has degree 5), where plain iteration
+// still carries 0.99^10 = 90% of its initial error.
+TEST(AndersonMixer, SolvesALinearMapWithFiveModesInAFewSteps)
+{
+    const size_t n = 300;
+    const double levels[5] = {0.99, 0.9, 0.5, 0.1, -0.5};
+    std::vector<double> d(n), c(n), b(n);
+    uint64_t state = 12345;
+    auto uniform = [&] {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        return double(state >> 11) / double(1ULL << 53);
+    };
+    for (size_t i = 0; i < n; ++i) {
+        d[i] = levels[i % 5];
+        c[i] = 0.6 * uniform() - 0.3;
+        b[i] = uniform();
+    }
+    // y = S x and y = S^-1 x (back substitution), S = I + N, N[i][i+1] = c[i].
+    auto applyS = [&](std::vector<double> x) {
+        for (size_t i = 0; i + 1 < n; ++i) x[i] += c[i] * x[i + 1];
+        return x;
+    };
+    auto solveS = [&](std::vector<double> x) {
+        for (size_t i = n - 1; i-- > 0;) x[i] -= c[i] * x[i + 1];
+        return x;
+    };
+    auto map = [&](const std::vector<float>& x) {   // G(x) = S D S^-1 x + b
+        std::vector<double> y = solveS(std::vector<double>(x.begin(), x.end()));
+        for (size_t i = 0; i < n; ++i) y[i] *= d[i];
+        y = applyS(y);
+        std::vector<float> g(n);
+        for (size_t i = 0; i < n; ++i) g[i] = float(y[i] + b[i]);
+        return g;
+    };
+    // Exact: x* = S (I - D)^-1 S^-1 b.
+    std::vector<double> exact = solveS(b);
+    for (size_t i = 0; i < n; ++i) exact[i] /= 1.0 - d[i];
+    exact = applyS(exact);
+    auto error = [&](const std::vector<float>& x) {
+        double e = 0.0, m = 0.0;
+        for (size_t i = 0; i < n; ++i) {
+            e = std::max(e, std::abs(double(x[i]) - exact[i]));
+            m = std::max(m, std::abs(exact[i]));
+        }
+        return e / m;
+    };
+    AndersonMixer mixer(n, 8);
+    std::vector<float> x(n, 0.f), plain(n, 0.f);
+    for (int k = 0; k < 10; ++k) {
+        std::vector<float> g = map(x);
+        mixer.mix(x.data(), g.data());
+        x = g;
+        plain = map(plain);
+    }
+    std::cout << "Anderson after 10 steps: " << error(x) << ", plain: " << error(plain) << "\n";
+    EXPECT_LT(error(x), 1e-4);   // float state, amplified by 1 / (1 - 0.99)
+    EXPECT_GT(error(plain), 0.5);
+    EXPECT_LE(mixer.columnsCombined(), 8);
+    EXPECT_THROW(AndersonMixer(n, 0), openvdb::ValueError);
+}
+
+TEST_F(RadiosityTest, AndersonSolvesAFurnaceAtAlbedo0999InSixtySweeps)
+{
+    // Issue 8's goal: rho = 0.999, every voxel within 1e-4 of E / (1 - rho) in <= 60 sweeps
+    // (plain Jacobi needs ~10^4). A uniformly lit furnace is the easy case for Krylov-type
+    // methods (the solution lies along the first iterate), so the light is also made
+    // non-uniform: one half of the voxels emit, and the answer is the plain iteration's, run to
+    // convergence at rho = 0.99 (~2,000 sweeps).
+    for (const char* name : {"furnace-box", "furnace-sphere"}) {
+        const Scene scene = canonicalScene(name, 12, 0.999f, 2.f);
+        RadiosityOptions o;
+        o.directions = 50;
+        o.maxIterations = 60;
+        o.tolerance = 1e-9;
+        o.accelerate = Acceleration::Anderson;
+        RadiositySolver solver(scene, o);
+        solver.solve();
+        const double exact = 2.0 / (1.0 - 0.999);
+        double worst = 0.0;
+        for (float b : solver.grey()) worst = std::max(worst, std::abs(b - exact) / exact);
+        std::cout << name << " rho 0.999: " << solver.iterationCount()
+                  << " Anderson sweeps, worst relative error " << worst << "\n";
+        EXPECT_LT(worst, 1e-4) << name;
+        EXPECT_LE(solver.iterationCount(), 60) << name;
+    }
+    grids::BuildParams p;
+    p.res = 12;
+    p.albedo = 0.99f;
+    p.emission = 2.f;
+    openvdb::GridPtrVec g = grids::findBuilder("furnace-box")->build(p);
+    for (auto& grid : g) {
+        if (grid->getName() != "emission") continue;
+        auto e = openvdb::gridPtrCast<openvdb::FloatGrid>(grid);
+        for (auto it = e->beginValueOn(); it; ++it) if (it.getCoord().x() > 5) it.setValue(0.f);
+    }
+    const Scene scene = buildScene(g);
+    RadiosityOptions o;
+    o.directions = 50;
+    o.maxIterations = 20000;
+    o.tolerance = 1e-9;
+    o.update = UpdateScheme::Jacobi;
+    RadiositySolver reference(scene, o);
+    reference.solve();
+    ASSERT_TRUE(reference.converged());
+    o.maxIterations = 60;
+    o.accelerate = Acceleration::Anderson;
+    RadiositySolver fast(scene, o);
+    fast.solve();
+    double worst = 0.0, lo = 1e30, hi = 0.0;
+    for (size_t i = 0; i < scene.size(); ++i) {
+        const double r = reference.grey()[i];
+        worst = std::max(worst, std::abs(fast.grey()[i] - r) / r);
+        lo = std::min(lo, r);
+        hi = std::max(hi, r);
+    }
+    std::cout << "half-lit furnace rho 0.99: reference " << reference.iterationCount()
+              << " Jacobi sweeps (B from " << lo << " to " << hi << "), Anderson "
+              << fast.iterationCount() << " sweeps, worst relative difference " << worst << "\n";
+    EXPECT_GT(hi / lo, 1.01);   // the light is not uniform
+    EXPECT_LT(worst, 1e-4);
+}
+
+TEST_F(RadiosityTest, AndersonGivesTheConvergedRgbCornellBox)
+{
+    // An open RGB scene: the accelerated solve reaches the plain solve's converged answer (1e-5
+    // of max B) in fewer sweeps, with the same bits on any thread count.
+    const Scene scene = canonicalScene("cornell", 24);
+    RadiosityOptions o;
+    o.directions = 60;
+    o.maxIterations = 1000;
+    o.tolerance = 1e-8;
+    RadiositySolver plain(scene, o);
+    plain.solve();
+    ASSERT_TRUE(plain.converged());
+    o.accelerate = Acceleration::Anderson;
+    std::vector<Vec3f> first;
+    int sweeps = 0;
+    for (int threads : {1, 2, 8}) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+        RadiositySolver fast(scene, o);
+        fast.solve();
+        ASSERT_TRUE(fast.converged());
+        if (first.empty()) {
+            first = fast.rgb();
+            sweeps = fast.iterationCount();
+        } else {
+            ASSERT_EQ(std::memcmp(first.data(), fast.rgb().data(), first.size() * sizeof(Vec3f)), 0)
+                << threads << " threads";
+        }
+    }
+    double worst = 0.0, top = 0.0;
+    for (size_t i = 0; i < scene.size(); ++i) {
+        top = std::max(top, double(plain.rgb()[i][0]));
+        for (int c = 0; c < 3; ++c) {
+            worst = std::max(worst, double(std::abs(first[i][c] - plain.rgb()[i][c])));
+        }
+    }
+    std::cout << "Cornell 24: in-place " << plain.iterationCount() << " sweeps, Anderson " << sweeps
+              << ", worst difference " << worst / top << " of max B\n";
+    EXPECT_LT(worst, 1e-5 * top);
+    EXPECT_LT(sweeps, plain.iterationCount());
+    o.update = UpdateScheme::Progressive;
+    EXPECT_THROW(RadiositySolver(scene, o), openvdb::ValueError);
+}
+
 TEST_F(RadiosityTest, ProgressiveShootingFollowsTheJacobiIterates)
 {
     // Shooting the unshot radiosity sums the Neumann series term by term: iterate k equals
@@ -409,6 +576,224 @@ TEST_F(RadiosityTest, RayCastingReferenceAgreesWithTheSweeps)
                                                                                  : " standard");
             std::cout << c.name << (type == LineType::Naive ? " naive" : " standard")
                       << ": max |sweep - raycast| / max B = " << worst / maxB << "\n";
+        }
+    }
+}
+
+// Issue 8, precision: the solver keeps B and its per-group sums in float. Reference: the same
+// discrete operator T (the same float weights, extracted column by column as the Jacobi sweep
+// of a unit impulse in a copy of the scene without emission), solved in double. Float storage
+// costs less than 1e-5 of the solution on the RGB Cornell box, for every update scheme.
+TEST_F(RadiosityTest, FloatSolutionMatchesADoublePrecisionSolveOnTheCornellBox)
+{
+    const Scene scene = canonicalScene("cornell", 12);
+    ASSERT_TRUE(scene.isRgb());
+    const size_t n = scene.size();
+    const Scene dark(scene.transformPtr(), scene.voxels(), scene.normals(), scene.albedo(),
+        Attribute(0.f), scene.surfaceName(), scene.surfaceKind());
+    RadiosityOptions o;
+    o.directions = 100;
+    o.update = UpdateScheme::Jacobi;
+    RadiositySolver probe(dark, o);
+    probe.iterate();   // measures the per-voxel hit weights (closed rooms), part of T
+    // T by rows: row i holds (j, T_ij) per channel.
+    std::vector<std::vector<std::pair<uint32_t, Vec3f>>> rows(n);
+    std::vector<Vec3f> impulse(n, Vec3f(0.f));
+    for (size_t j = 0; j < n; ++j) {
+        impulse[j] = Vec3f(1.f);
+        probe.setRadiosity(impulse);
+        probe.iterate();
+        impulse[j] = Vec3f(0.f);
+        const std::vector<Vec3f>& col = probe.rgb();
+        for (size_t i = 0; i < n; ++i) {
+            if (col[i] != Vec3f(0.f)) rows[i].emplace_back(uint32_t(j), col[i]);
+        }
+    }
+    // B = E + T B in double, Jacobi to a 1e-15 change.
+    std::vector<openvdb::Vec3d> exact(n, openvdb::Vec3d(0.0)), next(n);
+    for (int it = 0; it < 10000; ++it) {
+        double change = 0.0, top = 0.0;
+        for (size_t i = 0; i < n; ++i) {
+            openvdb::Vec3d b(scene.emission().rgb(i));
+            for (const auto& [j, t] : rows[i]) {
+                for (int c = 0; c < 3; ++c) b[c] += double(t[c]) * exact[j][c];
+            }
+            next[i] = b;
+            for (int c = 0; c < 3; ++c) {
+                change = std::max(change, std::abs(b[c] - exact[i][c]));
+                top = std::max(top, std::abs(b[c]));
+            }
+        }
+        exact.swap(next);
+        if (change <= 1e-15 * top) break;
+    }
+    double top = 0.0;
+    for (const auto& b : exact) top = std::max({top, b[0], b[1], b[2]});
+    ASSERT_GT(top, 0.0);
+    for (UpdateScheme update : {UpdateScheme::Jacobi, UpdateScheme::InPlace}) {
+        for (Acceleration accel : {Acceleration::None, Acceleration::Anderson}) {
+            if (update == UpdateScheme::InPlace && accel == Acceleration::Anderson) continue;
+            RadiosityOptions f = o;
+            f.update = update;
+            f.accelerate = accel;
+            f.tolerance = 1e-8;
+            f.maxIterations = 500;
+            RadiositySolver solver(scene, f);
+            solver.solve();
+            double worst = 0.0, worstLocal = 0.0;
+            for (size_t i = 0; i < n; ++i) {
+                for (int c = 0; c < 3; ++c) {
+                    const double d = std::abs(double(solver.rgb()[i][c]) - exact[i][c]);
+                    worst = std::max(worst, d / top);
+                    if (exact[i][c] > 1e-3 * top) {
+                        worstLocal = std::max(worstLocal, d / exact[i][c]);
+                    }
+                }
+            }
+            std::cout << "float vs double, " << n << " voxels, update " << int(update)
+                      << (accel == Acceleration::Anderson ? " anderson" : "") << ", "
+                      << solver.iterationCount() << " iterations: max |diff| / max B = " << worst
+                      << ", per voxel (B > 1e-3 max) " << worstLocal << "\n";
+            EXPECT_LT(worst, 1e-5);
+            EXPECT_LT(worstLocal, 1e-5);
+        }
+    }
+}
+
+// Issue 8, extremes: a closed furnace at every albedo from 0 to 1 - 1e-6, Anderson-accelerated.
+// The exact answer is E / (1 - rho) with rho the albedo as stored (float). At rho = 1 - 1e-6 the
+// solution amplifies every float rounding (of B, of the gathered sums) by 1 / (1 - rho) = 1e6:
+// float storage limits it to a few per cent (measured 2.8%; README, "Precision"), hence the
+// looser bound there.
+TEST_F(RadiosityTest, FurnaceIsExactAndFiniteFromAlbedo0To1MinusOneMillionth)
+{
+    const struct { double rho; double tol; } cases[] = {
+        {0.0, 1e-6}, {1e-6, 1e-6}, {0.5, 1e-5}, {0.99, 1e-4}, {0.999, 1e-4}, {1.0 - 1e-6, 5e-2}};
+    for (const char* name : {"furnace-box", "furnace-sphere"}) {
+        for (const auto& c : cases) {
+            const float rho = float(c.rho);
+            const Scene scene = canonicalScene(name, 12, rho, 1.f);
+            RadiosityOptions o;
+            o.directions = 50;
+            o.maxIterations = 100;
+            o.tolerance = 1e-8;
+            o.accelerate = Acceleration::Anderson;
+            RadiositySolver solver(scene, o);
+            solver.solve();
+            const double exact = 1.0 / (1.0 - double(rho));
+            double worst = 0.0;
+            bool finite = true;
+            for (float b : solver.grey()) {
+                finite = finite && std::isfinite(b);
+                worst = std::max(worst, std::abs(b - exact) / exact);
+            }
+            std::cout << name << " rho " << c.rho << ": " << solver.iterationCount()
+                      << " sweeps, worst relative error " << worst << "\n";
+            EXPECT_TRUE(finite) << name << " rho " << c.rho;
+            EXPECT_LT(worst, c.tol) << name << " rho " << c.rho;
+        }
+    }
+}
+
+// Issue 8, extremes: the solver is linear, so scaling the emission by s scales B by s, from
+// 1e-30 to 1e30, with and without Anderson acceleration: bit for bit for s = 2^100, to within
+// float's resolution of the brightest voxel otherwise (1e-7 of max B; 3e-7 where s E is itself
+// rounded). (At s = 2^-100 the
+// faintest gathered products fall below 1.2e-38 and are flushed to zero, Denormals.h: measured
+// 2e-8 of max B.) Never a NaN, an Inf, or a lit voxel flushed to zero.
+TEST_F(RadiosityTest, RadiosityScalesWithEmissionFrom1eMinus30To1e30)
+{
+    for (Acceleration accel : {Acceleration::None, Acceleration::Anderson}) {
+        RadiosityOptions o;
+        o.directions = 60;
+        o.maxIterations = 8;
+        o.tolerance = 0.0;
+        o.accelerate = accel;
+        auto solve = [&](float emission) {
+            const Scene scene = canonicalScene("cornell", 12, -1.f, emission);
+            RadiositySolver solver(scene, o);
+            solver.solve();
+            return solver.rgb();
+        };
+        const std::vector<Vec3f> unit = solve(1.f);
+        float top = 0.f;
+        for (const Vec3f& b : unit) top = std::max({top, b[0], b[1], b[2]});
+        for (double s : {0x1p-100, 0x1p100, 1e-30, 1e30, 1e-20, 1e20}) {
+            const std::vector<Vec3f> scaled = solve(float(s));
+            ASSERT_EQ(scaled.size(), unit.size());
+            int exponent = 0;
+            const bool powerOfTwo = std::frexp(s, &exponent) == 0.5;
+            double worst = 0.0;
+            size_t lost = 0, bad = 0;
+            for (size_t i = 0; i < unit.size(); ++i) {
+                for (int c = 0; c < 3; ++c) {
+                    const double want = double(unit[i][c]) * double(float(s));
+                    const double got = scaled[i][c];
+                    if (!std::isfinite(got)) ++bad;
+                    if (unit[i][c] > 0.f && got == 0.0) ++lost;
+                    const double scale = double(top) * double(float(s));
+                    worst = std::max(worst, std::abs(got - want) / scale);
+                }
+            }
+            EXPECT_EQ(bad, 0u) << s;
+            EXPECT_EQ(lost, 0u) << s;
+            if (powerOfTwo && s > 1.0) {
+                EXPECT_EQ(worst, 0.0) << s << " anderson " << int(accel);
+            } else if (powerOfTwo) {
+                EXPECT_LT(worst, 1e-7) << s << " anderson " << int(accel);
+            } else {
+                // s E is itself rounded to float: a few ulps.
+                EXPECT_LT(worst, 3e-7) << s << " anderson " << int(accel);
+            }
+        }
+    }
+}
+
+// Issue 8, extremes: surface radiosity depends on the geometry in voxels, not on the world size
+// of a voxel: the same room at 2e-5 and 1e6 world units per voxel gives the same bits. (OpenVDB
+// refuses transforms whose determinant is below 3e-15, i.e. voxels under 1.44e-5 units: the
+// issue's 1e-6 cannot be represented in a .vdb file.) The smallest scene, one voxel, sees
+// nothing: B = E exactly.
+TEST_F(RadiosityTest, VoxelSizeFrom2eMinus5To1e6AndOneVoxelScenes)
+{
+    RadiosityOptions o;
+    o.directions = 60;
+    o.maxIterations = 5;
+    o.tolerance = 0.0;
+    std::vector<std::vector<float>> results;
+    EXPECT_THROW(openvdb::math::Transform::createLinearTransform(1e-6), openvdb::ArithmeticError);
+    for (double size : {1.0, 2e-5, 1e6}) {
+        openvdb::GridPtrVec grids = emptyScene(size);
+        boxShell(grids, 0, 9, true, 0.f, 0.7f);
+        auto e = openvdb::gridPtrCast<openvdb::FloatGrid>(grids[1]);
+        for (int x = 3; x <= 5; ++x) e->tree().setValueOn(Coord(x, 9, 4), 2.f);
+        const Scene scene = buildScene(grids);
+        RadiositySolver solver(scene, o);
+        solver.solve();
+        results.push_back(solver.grey());
+    }
+    for (size_t k = 1; k < results.size(); ++k) {
+        ASSERT_EQ(results[k].size(), results[0].size());
+        EXPECT_EQ(std::memcmp(results[k].data(), results[0].data(),
+            results[0].size() * sizeof(float)), 0) << "voxel size case " << k;
+    }
+    for (float emission : {0.f, 3.f}) {
+        openvdb::GridPtrVec grids = emptyScene(1.0);
+        openvdb::gridPtrCast<openvdb::Vec3SGrid>(grids[0])->tree().setValueOn(Coord(5, -7, 2),
+            Vec3f(0.f, 1.f, 0.f));
+        openvdb::gridPtrCast<openvdb::FloatGrid>(grids[1])->tree().setValueOn(Coord(5, -7, 2),
+            emission);
+        openvdb::gridPtrCast<openvdb::FloatGrid>(grids[2])->tree().setValueOn(Coord(5, -7, 2),
+            0.9f);
+        const Scene scene = buildScene(grids);
+        ASSERT_EQ(scene.size(), 1u);
+        for (Acceleration accel : {Acceleration::None, Acceleration::Anderson}) {
+            RadiosityOptions one = o;
+            one.accelerate = accel;
+            RadiositySolver solver(scene, one);
+            solver.solve();
+            ASSERT_EQ(solver.grey().size(), 1u);
+            EXPECT_EQ(solver.grey()[0], emission);
         }
     }
 }

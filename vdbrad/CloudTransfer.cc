@@ -1,5 +1,6 @@
 #include "vdbrad/CloudTransfer.h"
 
+#include "vdbrad/Denormals.h"
 #include "vdbrad/Errors.h"
 #include "vdbrad/LeafOrder.h"
 #include "vdbrad/LinePartition.h"
@@ -29,18 +30,20 @@ constexpr double kPi = 3.14159265358979323846;
 // wrapping light is carried over to the next iteration.
 constexpr int kMaxWraps = 64;
 
-// Across a step of optical depth tau: the transmittance e^-tau and the mean factor
-// (1 - e^-tau) / tau, with one exponential, and without cancellation for thin voxels.
+// Across a step of optical depth tau: the absorbed fraction 1 - e^-tau and the mean factor
+// (1 - e^-tau) / tau, with one exponential, and without cancellation for thin voxels. The
+// radiance is updated as L += (S - L) (1 - e^-tau) rather than S + (L - S) e^-tau: at tau = 1e-8
+// e^-tau rounds to 1 in float and the latter would lose all the light a thin voxel adds.
 inline void
-stepFactors(float tau, float& transmit, float& mean)
+stepFactors(float tau, float& absorb, float& mean)
 {
     if (tau > 1e-3f) {
         const double e = std::exp(-double(tau));
-        transmit = float(e);
+        absorb = float(1.0 - e);
         mean = float((1.0 - e) / double(tau));
     } else {
         // Series to tau^3: relative error below 1e-12 here.
-        transmit = 1.f - tau * (1.f - 0.5f * tau * (1.f - tau / 3.f));
+        absorb = tau * (1.f - 0.5f * tau * (1.f - tau / 3.f));
         mean = 1.f - 0.5f * tau * (1.f - tau / 3.f * (1.f - 0.25f * tau));
     }
 }
@@ -87,12 +90,14 @@ struct CloudTransfer::Impl
     std::vector<float> omega;        // single-scattering albedo
     std::vector<float> beamJ;        // mean radiance of the direct beam, D / (4 pi kappa)
     std::vector<double> deposited;   // beam power lost per voxel
-    double incident = 0.0, directOut = 0.0;
+    double incident = 0.0, directOut = 0.0;   // at the internal irradiance (see outputScale)
+    double outputScale = 1.0;        // F0 / the internal irradiance: a power of two
     std::vector<float> diffuseJ;     // diffuse mean radiance of the last sweep
     // Anisotropic scattering: M = (K + 1)^2 radiance moments per voxel (M = 1: isotropic).
     int M = 1;
     std::vector<double> chi;         // delta-M scaled Legendre coefficients, l = 0..K
     std::vector<float> moments;      // diffuse I_lm per voxel (n x M), from the last sweep
+    std::unique_ptr<AndersonMixer> mixer;   // Acceleration::Anderson only
     // First scattering of the beam, per direction and sense: the full phase function (not its
     // truncation) divided by 1 - f, less the forward fraction f delta-M keeps in the beam, taken
     // from the directions closest to the beam's, so that sum_s Omega_s T_s = 4 pi exactly. A
@@ -243,6 +248,10 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
         OPENVDB_THROW(openvdb::ValueError, "sun azimuth must be finite");
     }
     if (options.up < 0 || options.up > 2) OPENVDB_THROW(openvdb::ValueError, "up must be 0, 1 or 2");
+    if (options.accelerate == Acceleration::Anderson && options.andersonDepth < 1) {
+        OPENVDB_THROW(openvdb::ValueError, "Anderson depth must be >= 1, got "
+            << options.andersonDepth);
+    }
     if (cloud.albedo().isRgb()) {
         OPENVDB_THROW(openvdb::ValueError, "RGB single-scattering albedo is not supported yet; "
             "give a float albedo grid");
@@ -287,8 +296,16 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
     toSunWorld[second] = std::sin(zen) * std::sin(az);
     const Vec3d toSun = cloud.transform().baseMap()->applyInverseJacobian(toSunWorld);
     if (interrupt) interrupt->start("solar beam");
+    // The transfer runs at the irradiance divided by a power of two that brings it to [0.5, 1),
+    // and intensities are multiplied back on output (both exact): flush-to-zero (Denormals.h)
+    // then cuts at the same relative level for any F0, and F0 = 2^k F gives 2^k times the bits.
+    int exponent = 0;
+    if (options.irradiance > 0.0 && std::isfinite(options.irradiance)) {
+        std::frexp(options.irradiance, &exponent);
+    }
+    impl.outputScale = std::ldexp(1.0, exponent);
     SolarBeamResult beam = traceSolarBeam(cloud.voxels(), impl.kappa, toSun, up, options.periodic,
-        options.beamRaysPerVoxel, options.irradiance, interrupt);
+        options.beamRaysPerVoxel, options.irradiance / impl.outputScale, interrupt);
     if (interrupt) interrupt->end();
     impl.incident = beam.incident;
     impl.directOut = beam.transmitted;
@@ -402,6 +419,11 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
                 }
             });
     }
+    if (options.accelerate == Acceleration::Anderson) {
+        // The moments and the light carried across periodic side faces (see iterate()).
+        impl.mixer.reset(new AndersonMixer(n * size_t(impl.M) + impl.leftFace.size(),
+            options.andersonDepth));
+    }
     mSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -458,6 +480,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
 
     tbb::parallel_for(tbb::blocked_range<int>(0, Impl::kGroups, 1),
         [&](const tbb::blocked_range<int>& r) {
+            const ScopedFlushDenormals flush;   // Denormals.h
             for (int g = r.begin(); g != r.end(); ++g) {
                 const Impl::Pattern& pattern = impl.patterns[size_t(g / 2)];
                 if (pattern.directions.empty()) continue;
@@ -513,8 +536,8 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                     }
                                 }
                                 ray.last = x;
-                                float transmit, mean;
-                                stepFactors(pattern.kappa[x] * step, transmit, mean);
+                                float absorb, mean;
+                                stepFactors(pattern.kappa[x] * step, absorb, mean);
                                 const size_t sense = forward ? 0 : 1;
                                 float s = 0.f;
                                 if (sources) {
@@ -525,7 +548,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                 const float lbar = omega * (s + (ray.radiance - s) * mean);
                                 float* acc = &G[size_t(x) * M];
                                 for (size_t lm = 0; lm < M; ++lm) acc[lm] += lbar * yAcc[sense][lm];
-                                ray.radiance = s + (ray.radiance - s) * transmit;
+                                ray.radiance += (s - ray.radiance) * absorb;
                             },
                             [&](const std::vector<Ray>& fronts, bool forward) {
                                 const Vec3d t = forward ? unit : -unit;
@@ -594,6 +617,14 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
             for (size_t lm = 0; lm < M; ++lm) sum[order[k] * M + lm] += double(G[k * M + lm]);
         }
     }
+    // The state this sweep started from, for the Anderson step below: the moments and, with
+    // periodic boundaries, the light carried across the side faces (in a thin periodic slab
+    // light wraps many times, and that carry-over is then the slowest mode).
+    std::vector<float> x;
+    if (impl.mixer) {
+        x = impl.moments;
+        x.insert(x.end(), impl.leftFace.begin(), impl.leftFace.end());
+    }
     for (size_t e = 0; e < n * M; ++e) impl.moments[e] = float(sum[e]);
     double maxChange = 0.0, maxJ = 0.0, absorbed = 0.0;
     const double y00 = 1.0 / std::sqrt(4.0 * kPi);
@@ -608,10 +639,25 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
     }
 
     if (periodic) impl.leftFace.swap(leftNow);
+    if (impl.mixer) {
+        // The next sweep starts from the mixed state; J follows it, so that the next residual
+        // measures that sweep's change and the output is the mixed iterate. A mixed state with
+        // negative mean radiance or carried power is refused (the plain step is kept).
+        std::vector<float> gx = impl.moments;
+        gx.insert(gx.end(), impl.leftFace.begin(), impl.leftFace.end());
+        impl.mixer->mix(x.data(), gx.data());
+        bool physical = true;
+        for (size_t i = 0; i < n && physical; ++i) physical = gx[i * M] >= 0.f;
+        for (size_t k = n * M; k < gx.size() && physical; ++k) physical = gx[k] >= 0.f;
+        if (!physical) impl.mixer->rejectLastStep(gx.data());
+        std::copy(gx.begin(), gx.begin() + long(n * M), impl.moments.begin());
+        std::copy(gx.begin() + long(n * M), gx.end(), impl.leftFace.begin());
+        for (size_t i = 0; i < n; ++i) impl.diffuseJ[i] = float(double(impl.moments[i * M]) * y00);
+    }
     double up0 = 0.0, down0 = 0.0;
     for (const auto& e : escaped) { down0 += e[0]; up0 += e[1]; }
     const double in = impl.incident > 0.0 ? impl.incident : 1.0;
-    mBudget.incident = impl.incident;
+    mBudget.incident = impl.incident * impl.outputScale;
     mBudget.albedo = up0 / in;
     mBudget.transmittance = (down0 + impl.directOut) / in;
     mBudget.directTransmittance = impl.directOut / in;
@@ -629,11 +675,95 @@ CloudTransfer::solve(openvdb::util::NullInterrupter* interrupt)
     while (!converged() && iterationCount() < mOptions.maxIterations) iterate(interrupt);
 }
 
+size_t
+CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& options,
+    int threads)
+{
+    const size_t n = cloud.size(), t = size_t(std::max(threads, 1));
+    const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
+    const size_t M = size_t(order + 1) * size_t(order + 1);
+    size_t perVoxel = 4 + 4 + 4 + 8 + 4;            // kappa, omega, beam J, deposit, diffuse J
+    perVoxel += 4 * (4 + 4 + 12);                   // per pattern: order, kappa, sweep coords
+    perVoxel += 4 * M + 4 * M + 4;                  // moments, their source, the beam's source
+    perVoxel += size_t(Impl::kGroups) * 4 * M;      // gathered moments per group
+    perVoxel += 8 * M;                              // their double sum
+    perVoxel += t * (4 * M + 4 + 4 + 16);           // per thread: S, B, slots, line state
+    if (options.accelerate == Acceleration::Anderson) {
+        perVoxel += 8 * M + AndersonMixer::bytes(M, options.andersonDepth);   // + x, G(x)
+    }
+    size_t bytes = n * perVoxel;
+    if (options.periodic) {
+        // Light carried across the side faces: per direction, sense, face and layer, twice.
+        const openvdb::CoordBBox box = cloud.voxels().bbox();
+        const size_t layers = size_t(box.dim()[options.up]);
+        const size_t dirs = DirectionSet::fromCount(options.directions).size();
+        const size_t faces = dirs * 2 * 6 * layers;
+        bytes += faces * (8 + 8 + 4);
+        if (options.accelerate == Acceleration::Anderson) {
+            bytes += 8 * faces + AndersonMixer::bytes(faces, options.andersonDepth);
+        }
+    }
+    return bytes;
+}
+
+uint64_t
+CloudTransfer::fingerprint() const
+{
+    const Impl& impl = *mImpl;
+    uint64_t h = hashBytes("vdbrad solve-cloud", 18);
+    const VoxelIndex& v = mCloud.voxels();
+    h = hashBytes(v.coords().data(), v.size() * sizeof(openvdb::Coord), h);
+    h = hashBytes(impl.kappa.data(), impl.kappa.size() * sizeof(float), h);
+    h = hashBytes(impl.omega.data(), impl.omega.size() * sizeof(float), h);
+    h = hashBytes(impl.deposited.data(), impl.deposited.size() * sizeof(double), h);
+    h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
+    h = hashBytes(impl.beamTable.data(), impl.beamTable.size() * sizeof(float), h);
+    const int64_t options[7] = {int64_t(mDirections.size()), mOptions.periodic ? 1 : 0,
+        mOptions.phaseOrder, int64_t(mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
+        impl.M};
+    return hashBytes(options, sizeof options, h);
+}
+
+void
+CloudTransfer::saveState(SolverState& state) const
+{
+    const Impl& impl = *mImpl;
+    state.put("residuals", mResiduals);
+    const double budget[6] = {mSeconds, mBudget.incident, mBudget.albedo,
+        mBudget.transmittance, mBudget.directTransmittance, mBudget.absorptance};
+    state.put("budget", budget, 6);
+    state.put("diffuseJ", impl.diffuseJ);
+    state.put("moments", impl.moments);
+    state.put("leftFace", impl.leftFace);
+    if (impl.mixer) impl.mixer->save(state, "anderson.");
+}
+
+void
+CloudTransfer::restoreState(const SolverState& state)
+{
+    Impl& impl = *mImpl;
+    mResiduals = state.get<double>("residuals");
+    const std::vector<double> budget = state.get<double>("budget", 6);
+    impl.diffuseJ = state.get<float>("diffuseJ", impl.diffuseJ.size());
+    impl.moments = state.get<float>("moments", impl.moments.size());
+    impl.leftFace = state.get<double>("leftFace", impl.leftFace.size());
+    if (impl.mixer) impl.mixer->restore(state, "anderson.");
+    mSeconds = budget[0];
+    mBudget.incident = budget[1];
+    mBudget.albedo = budget[2];
+    mBudget.transmittance = budget[3];
+    mBudget.directTransmittance = budget[4];
+    mBudget.absorptance = budget[5];
+}
+
 std::vector<float>
 CloudTransfer::meanIntensity() const
 {
     std::vector<float> J(mImpl->n);
-    for (size_t i = 0; i < J.size(); ++i) J[i] = mImpl->diffuseJ[i] + mImpl->beamJ[i];
+    const double scale = mImpl->outputScale;
+    for (size_t i = 0; i < J.size(); ++i) {
+        J[i] = float(double(mImpl->diffuseJ[i] + mImpl->beamJ[i]) * scale);
+    }
     return J;
 }
 

@@ -43,6 +43,8 @@
 // moments); memory (K + 1)^2 floats per voxel per accumulator group.
 #pragma once
 
+#include "vdbrad/Acceleration.h"
+#include "vdbrad/Checkpoint.h"
 #include "vdbrad/Cloud.h"
 #include "vdbrad/DirectionSet.h"
 #include "vdbrad/PhaseFunction.h"
@@ -79,6 +81,12 @@ struct CloudTransferOptions
     /// Spherical-harmonic order K of the radiance moments kept for an anisotropic phase, with
     /// delta-M scaling beyond it: (K + 1)^2 numbers per voxel and per accumulator group.
     int phaseOrder = 8;
+    /// Anderson acceleration (Acceleration.h) of the source iteration, over the radiance
+    /// moments (n x (K + 1)^2 numbers) and the light a periodic box carries over to the next
+    /// iteration across its side faces.
+    Acceleration accelerate = Acceleration::None;
+    /// Anderson history length m: 2m + 2 copies of the moments are kept.
+    int andersonDepth = 16;
 };
 
 /// Where the incident sunlight went, as fractions of the incident power (after the last sweep).
@@ -112,6 +120,19 @@ public:
     int iterationCount() const { return int(mResiduals.size()); }
     const std::vector<double>& residuals() const { return mResiduals; }
     const DirectionSet& directions() const { return mDirections; }
+
+    /// @brief Peak bytes a transfer of @a cloud with @a options allocates (not counting the
+    /// cloud), from the sizes of its arrays; @a threads: the worker threads that will run it.
+    static size_t memoryEstimate(const Cloud& cloud, const CloudTransferOptions& options,
+        int threads);
+
+    /// @brief Everything the next iterate() reads, for a checkpoint (Checkpoint.h); see
+    /// RadiositySolver::saveState.
+    void saveState(SolverState& state) const;
+    /// @throw openvdb::ValueError if @a state does not fit this transfer
+    void restoreState(const SolverState& state);
+    /// Hash of the medium, the beam and the options that change the iterates.
+    uint64_t fingerprint() const;
 
     /// Total mean radiance per medium voxel (VoxelIndex numbering), direct beam included.
     std::vector<float> meanIntensity() const;

@@ -1,5 +1,6 @@
 #include "vdbrad/RadiositySolver.h"
 
+#include "vdbrad/Denormals.h"
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
 #include "vdbrad/LeafOrder.h"
@@ -9,10 +10,12 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 
 namespace vdbrad {
 
@@ -69,12 +72,14 @@ struct RadiositySolver::Impl
     std::vector<float> invZ;                             // per voxel: 1 / Z(n)
     Regions regions;                                     // per voxel: the air region it faces
     bool hitsKnown = false;                              // invZ renormalised for closed voxels
+    bool gatheredStale = false;                          // B was replaced: next step is Jacobi
     std::vector<float> grey;
     std::vector<openvdb::Vec3f> rgb;
     std::vector<float> greyUnshot;                       // progressive shooting only
     std::vector<openvdb::Vec3f> rgbUnshot;
     std::vector<std::vector<float>> greyGathered;           // per group, kept between iterations
     std::vector<std::vector<openvdb::Vec3f>> rgbGathered;
+    std::unique_ptr<AndersonMixer> mixer;                // Acceleration::Anderson only
 
     static int patternOf(int group) { return group % 4; }
     // The directions of group g: every other one of its pattern's.
@@ -109,8 +114,10 @@ struct RadiositySolver::Engine
         // a voxel: closed-cavity voxels are renormalised over those (Enclosure.h). It is always
         // a plain Jacobi step, so that every group has a sum before in-place updates use them.
         const bool measureHits = !impl.hitsKnown;
-        const bool inPlace = s.mOptions.update == UpdateScheme::InPlace;
-        const int phases = (measureHits || !inPlace) ? 1 : 2;
+        const bool inPlace = s.mOptions.update == UpdateScheme::InPlace && !impl.mixer;
+        // After setRadiosity() the kept sums belong to another B: one full Jacobi step first.
+        const int phases = (measureHits || !inPlace || impl.gatheredStale) ? 1 : 2;
+        impl.gatheredStale = false;
         // Progressive shooting: the sweeps carry the unshot radiosity U, whose gathered light
         // is both added to B and the next U.
         const bool shooting = s.mOptions.update == UpdateScheme::Progressive;
@@ -149,6 +156,7 @@ struct RadiositySolver::Engine
             }
             tbb::parallel_for(tbb::blocked_range<int>(0, kGroups, 1),
                 [&](const tbb::blocked_range<int>& r) {
+                    const ScopedFlushDenormals flush;   // Denormals.h
                     for (int g = r.begin(); g != r.end(); ++g) {
                         const size_t p = size_t(Impl::patternOf(g));
                         if (!inPhase(g) || impl.patterns[p].directions.empty()) continue;
@@ -269,6 +277,16 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     if (!(options.tolerance >= 0.0)) {
         OPENVDB_THROW(openvdb::ValueError, "tolerance must be >= 0, got " << options.tolerance);
     }
+    if (options.accelerate == Acceleration::Anderson) {
+        if (options.update == UpdateScheme::Progressive) {
+            OPENVDB_THROW(openvdb::ValueError, "Anderson acceleration needs Jacobi or in-place "
+                "updates, not progressive shooting (whose state is not B alone)");
+        }
+        if (options.andersonDepth < 1) {
+            OPENVDB_THROW(openvdb::ValueError, "Anderson depth must be >= 1, got "
+                << options.andersonDepth);
+        }
+    }
     if (!(options.occlusionDepth > 0.f)) {
         OPENVDB_THROW(openvdb::ValueError, "occlusion depth must be > 0, got "
             << options.occlusionDepth);
@@ -336,6 +354,9 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         impl.grey.resize(n);
         for (size_t i = 0; i < n; ++i) impl.grey[i] = scene.emission().grey(i);
     }
+    if (options.accelerate == Acceleration::Anderson) {
+        impl.mixer.reset(new AndersonMixer(n * (scene.isRgb() ? 3 : 1), options.andersonDepth));
+    }
     // Nothing has been shot yet: all of E is unshot.
     if (options.update == UpdateScheme::Progressive) {
         impl.greyUnshot = impl.grey;
@@ -349,9 +370,24 @@ double
 RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
 {
     const auto t0 = std::chrono::steady_clock::now();
+    Impl& impl = *mImpl;
+    static_assert(sizeof(openvdb::Vec3f) == 3 * sizeof(float), "RGB state is mixed as floats");
+    float* state = mScene.isRgb() ? reinterpret_cast<float*>(impl.rgb.data()) : impl.grey.data();
+    // The first sweep measures the hit weights and so changes the map: mixing starts after it.
+    const bool mix = impl.mixer && impl.hitsKnown;
+    std::vector<float> x;
+    if (mix) x.assign(state, state + impl.mixer->size());
     const double residual = mScene.isRgb()
-        ? Engine<openvdb::Vec3f>::iterate(*this, mImpl->rgb, interrupt)
-        : Engine<float>::iterate(*this, mImpl->grey, interrupt);
+        ? Engine<openvdb::Vec3f>::iterate(*this, impl.rgb, interrupt)
+        : Engine<float>::iterate(*this, impl.grey, interrupt);
+    if (mix) {
+        impl.mixer->mix(x.data(), state);
+        // Radiosity is never negative: a mixed iterate that is has overshot; keep the sweep's.
+        const size_t size = impl.mixer->size();
+        if (std::any_of(state, state + size, [](float v) { return v < 0.f; })) {
+            impl.mixer->rejectLastStep(state);
+        }
+    }
     mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     mResiduals.push_back(residual);
     return residual;
@@ -367,6 +403,169 @@ void
 RadiositySolver::solve(openvdb::util::NullInterrupter* interrupt)
 {
     while (!converged() && iterationCount() < mOptions.maxIterations) iterate(interrupt);
+}
+
+template<typename ValueT>
+void
+RadiositySolver::replaceIterate(std::vector<ValueT>& state, const std::vector<ValueT>& b)
+{
+    if (mOptions.update == UpdateScheme::Progressive) {
+        OPENVDB_THROW(openvdb::ValueError, "progressive shooting carries unshot radiosity: its "
+            "iterate cannot be replaced by B alone");
+    }
+    if (b.size() != mScene.size()) {
+        OPENVDB_THROW(openvdb::ValueError, "setRadiosity: " << b.size() << " values for "
+            << mScene.size() << " voxels");
+    }
+    state = b;
+    mImpl->gatheredStale = true;
+    if (mImpl->mixer) mImpl->mixer->restart();
+}
+
+void
+RadiositySolver::setRadiosity(const std::vector<float>& b)
+{
+    if (mScene.isRgb()) OPENVDB_THROW(openvdb::ValueError, "setRadiosity: the scene is RGB");
+    replaceIterate(mImpl->grey, b);
+}
+
+void
+RadiositySolver::setRadiosity(const std::vector<openvdb::Vec3f>& b)
+{
+    if (!mScene.isRgb()) OPENVDB_THROW(openvdb::ValueError, "setRadiosity: the scene is grey");
+    replaceIterate(mImpl->rgb, b);
+}
+
+namespace {
+
+uint64_t
+hashAttribute(const Attribute& a, uint64_t h)
+{
+    const int64_t kind[1] = {int64_t(a.storage())};
+    const float uniform = a.uniformValue();
+    h = hashBytes(kind, sizeof kind, h);
+    h = hashBytes(&uniform, sizeof uniform, h);
+    h = hashBytes(a.greyArray().data(), a.greyArray().size() * sizeof(float), h);
+    return hashBytes(a.rgbArray().data(), a.rgbArray().size() * sizeof(openvdb::Vec3f), h);
+}
+
+} // namespace
+
+size_t
+RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& options, int threads)
+{
+    const size_t n = scene.size(), c = scene.isRgb() ? 12 : 4, t = size_t(std::max(threads, 1));
+    // Four visiting-order layouts: order and position (u32 each), the sweep's coordinates,
+    // normals and regions in that order.
+    size_t perVoxel = 4 * (4 + 4 + 12 + 12 + 4);
+    perVoxel += 4 + 4;                      // invZ, region
+    perVoxel += 2 * c + 4 * c;              // B, the previous B, B in each pattern's order
+    perVoxel += size_t(kGroups) * c;        // gathered sums per group
+    perVoxel += size_t(kGroups) * 4;        // hit weights (first iteration)
+    perVoxel += t * (4 + 8 + c);            // per-thread sweep workspace: slots, line fronts
+    if (options.update == UpdateScheme::Progressive) perVoxel += c;
+    if (options.accelerate == Acceleration::Anderson) {
+        perVoxel += c;                      // the swept iterate
+        perVoxel += AndersonMixer::bytes(c / 4, options.andersonDepth);
+    }
+    size_t bytes = n * perVoxel;
+    // Enclosure's flood fill: two bits per cell of the grown bounding box, up to its cap.
+    const openvdb::CoordBBox box = scene.voxels().bbox().expandBy(2);
+    const double cells = double(box.dim().x()) * double(box.dim().y()) * double(box.dim().z());
+    if (cells <= double(uint64_t(1) << 31)) bytes += 2 * size_t(cells / 8.0);
+    return bytes;
+}
+
+uint64_t
+RadiositySolver::fingerprint() const
+{
+    const VoxelIndex& v = mScene.voxels();
+    uint64_t h = hashBytes("vdbrad solve", 12);
+    h = hashBytes(v.coords().data(), v.size() * sizeof(openvdb::Coord), h);
+    h = hashBytes(mScene.normals().data(), mScene.size() * sizeof(openvdb::Vec3f), h);
+    h = hashAttribute(mScene.albedo(), h);
+    h = hashAttribute(mScene.emission(), h);
+    const int64_t options[7] = {mOptions.directions, int64_t(mOptions.lines),
+        int64_t(mOptions.update), int64_t(mOptions.visibility), int64_t(mOptions.accelerate),
+        mOptions.andersonDepth, int64_t(mDirections.size())};
+    h = hashBytes(options, sizeof options, h);
+    return hashBytes(&mOptions.occlusionDepth, sizeof(float), h);
+}
+
+void
+RadiositySolver::saveState(SolverState& state) const
+{
+    const Impl& impl = *mImpl;
+    const bool rgb = mScene.isRgb();
+    auto floats = [&](const auto& v) {
+        return std::pair<const float*, size_t>(reinterpret_cast<const float*>(v.data()),
+            v.size() * (rgb ? 3 : 1));
+    };
+    state.put("residuals", mResiduals);
+    state.put("seconds", &mSeconds, 1);
+    const uint8_t flags[2] = {uint8_t(impl.hitsKnown), uint8_t(impl.gatheredStale)};
+    state.put("flags", flags, 2);
+    state.put("invZ", impl.invZ);
+    auto put = [&](const std::string& name, const auto& v) {
+        const auto [data, count] = floats(v);
+        state.put(name, data, count);
+    };
+    if (rgb) {
+        put("B", impl.rgb);
+        put("unshot", impl.rgbUnshot);
+        for (size_t g = 0; g < size_t(kGroups); ++g) {
+            put("gathered" + std::to_string(g), g < impl.rgbGathered.size()
+                ? impl.rgbGathered[g] : std::vector<openvdb::Vec3f>());
+        }
+    } else {
+        put("B", impl.grey);
+        put("unshot", impl.greyUnshot);
+        for (size_t g = 0; g < size_t(kGroups); ++g) {
+            put("gathered" + std::to_string(g), g < impl.greyGathered.size()
+                ? impl.greyGathered[g] : std::vector<float>());
+        }
+    }
+    if (impl.mixer) impl.mixer->save(state, "anderson.");
+}
+
+void
+RadiositySolver::restoreState(const SolverState& state)
+{
+    Impl& impl = *mImpl;
+    const bool rgb = mScene.isRgb();
+    const size_t n = mScene.size(), width = rgb ? 3 : 1;
+    mResiduals = state.get<double>("residuals");
+    mSeconds = state.get<double>("seconds", 1)[0];
+    const std::vector<uint8_t> flags = state.get<uint8_t>("flags", 2);
+    impl.hitsKnown = flags[0] != 0;
+    impl.gatheredStale = flags[1] != 0;
+    impl.invZ = state.get<float>("invZ", n);
+    // Arrays of float channels, empty or of n voxels.
+    auto get = [&](const std::string& name, auto& v) {
+        const std::vector<float> f = state.get<float>(name);
+        if (!f.empty() && f.size() != n * width) {
+            OPENVDB_THROW(openvdb::ValueError, "checkpoint's '" << name << "' has " << f.size()
+                << " values for " << n << " voxels");
+        }
+        v.resize(f.size() / width);
+        if (!f.empty()) std::memcpy(static_cast<void*>(v.data()), f.data(), f.size() * 4);
+    };
+    auto getGroups = [&](auto& groups) {
+        groups.resize(size_t(kGroups));
+        for (size_t g = 0; g < groups.size(); ++g) get("gathered" + std::to_string(g), groups[g]);
+    };
+    if (rgb) {
+        get("B", impl.rgb);
+        get("unshot", impl.rgbUnshot);
+        getGroups(impl.rgbGathered);
+        if (impl.rgb.size() != n) OPENVDB_THROW(openvdb::ValueError, "checkpoint has no B");
+    } else {
+        get("B", impl.grey);
+        get("unshot", impl.greyUnshot);
+        getGroups(impl.greyGathered);
+        if (impl.grey.size() != n) OPENVDB_THROW(openvdb::ValueError, "checkpoint has no B");
+    }
+    if (impl.mixer) impl.mixer->restore(state, "anderson.");
 }
 
 const std::vector<float>& RadiositySolver::grey() const { return mImpl->grey; }

@@ -24,6 +24,8 @@
 // A grey scene (no RGB input) is solved in floats; an RGB one in Vec3f, with no cost to the other.
 #pragma once
 
+#include "vdbrad/Acceleration.h"
+#include "vdbrad/Checkpoint.h"
 #include "vdbrad/DirectionSet.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/OutputGrids.h"
@@ -81,6 +83,12 @@ struct RadiosityOptions
     UpdateScheme update = UpdateScheme::InPlace;
     /// Line sweeps, or the ray-casting reference.
     Visibility visibility = Visibility::Sweep;
+    /// Anderson acceleration (Acceleration.h) of Jacobi sweeps: with it, an in-place update is
+    /// replaced by Jacobi (an in-place iteration keeps half of the previous iteration's gathered
+    /// light, so it is not a function of B alone), and progressive shooting is refused.
+    Acceleration accelerate = Acceleration::None;
+    /// Anderson history length m: 2m + 2 copies of B are kept.
+    int andersonDepth = 16;
 };
 
 class RadiositySolver
@@ -94,7 +102,8 @@ public:
     RadiositySolver(const Scene& scene, const RadiosityOptions& options = RadiosityOptions());
     ~RadiositySolver();
 
-    /// @brief One Jacobi iteration over every direction; returns the relative residual.
+    /// @brief One iteration over every direction (followed by an Anderson step when accelerated);
+    /// returns the relative residual max|G(B) - B| / max|G(B)| of the iterate it swept.
     /// @throw vdbrad::Cancelled if @a interrupt asks to stop (B may then hold a partly updated
     ///        iterate: discard the solver or keep iterating)
     double iterate(openvdb::util::NullInterrupter* interrupt = nullptr);
@@ -112,6 +121,30 @@ public:
     const std::vector<float>& grey() const;
     const std::vector<openvdb::Vec3f>& rgb() const;
 
+    /// @brief Make @a b (one value per voxel, in Scene order) the iterate the next iterate()
+    /// sweeps: a restart from a known state. The next step is a Jacobi one and an Anderson
+    /// history starts again.
+    /// @throw openvdb::ValueError if its size or kind (grey, RGB) does not match the scene, or
+    ///        for progressive shooting (whose state is not B alone)
+    void setRadiosity(const std::vector<float>& b);
+    void setRadiosity(const std::vector<openvdb::Vec3f>& b);
+
+    /// @brief Peak bytes a solver of @a scene with @a options allocates (not counting the
+    /// scene), from the sizes of its arrays: for refusing a solve before it allocates.
+    /// @a threads: the worker threads that will run it.
+    static size_t memoryEstimate(const Scene& scene, const RadiosityOptions& options,
+        int threads);
+
+    /// @brief Everything the next iterate() reads, for a checkpoint (Checkpoint.h): a solver
+    /// set up from the same scene and options and given it by restoreState() computes the
+    /// same bits from there on as this one.
+    void saveState(SolverState& state) const;
+    /// @throw openvdb::ValueError if @a state does not fit this solver (sizes, update scheme)
+    void restoreState(const SolverState& state);
+    /// Hash of the scene and of the options that change the iterates (not the iteration cap
+    /// or the tolerance): a checkpoint's fingerprint.
+    uint64_t fingerprint() const;
+
     /// Statistics of the solve so far (directions, iterations, residual, seconds, lines).
     SolveStats stats() const;
     /// The `radiosity` grid of the current solution, with the contract's metadata.
@@ -120,6 +153,8 @@ public:
 private:
     struct Impl;
     template<typename ValueT> struct Engine;
+    template<typename ValueT>
+    void replaceIterate(std::vector<ValueT>& state, const std::vector<ValueT>& b);
     const Scene& mScene;
     RadiosityOptions mOptions;
     DirectionSet mDirections;

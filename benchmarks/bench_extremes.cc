@@ -1,0 +1,222 @@
+// Issue 8's extremes, measured (tables in BENCHMARKS.md "Extremes"):
+//  1. the furnace box across albedos from 0 to 1 - 1e-6: sweeps to 1e-4 of E / (1 - rho) with
+//     plain in-place sweeps and with Anderson, and the error where each stops;
+//  2. denormals: the same surface and cloud problems with every value scaled down into float's
+//     denormal range (the solvers are linear, so only the magnitudes differ), time per sweep
+//     against the unscaled run in this process ("ratio" = scaled / unscaled);
+//  3. a scene of >= 1e7 surface voxels (furnace box at res >= 1300), solved to 1e-6 with Anderson:
+//     voxels, seconds per sweep, error against the exact answer, peak memory.
+//
+//   build/benchmarks/bench_extremes [big-res=1300] [big-directions=50]   (big-res 0: skip part 3)
+#include "grids/CanonicalGrids.h"
+#include "vdbrad/CloudTransfer.h"
+#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/vdbrad.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double
+since(Clock::time_point t0)
+{
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+vdbrad::Scene
+furnace(int res, float rho, float emission, bool halfLit)
+{
+    vdbrad::grids::BuildParams p;
+    p.res = res;
+    p.albedo = rho;
+    p.emission = emission;
+    openvdb::GridPtrVec g = vdbrad::grids::makeFurnaceBox(p);
+    if (halfLit) {
+        for (auto& grid : g) {
+            if (grid->getName() != "emission") continue;
+            auto e = openvdb::gridPtrCast<openvdb::FloatGrid>(grid);
+            for (auto it = e->beginValueOn(); it; ++it) {
+                if (it.getCoord().x() >= res / 2) it.setValue(0.f);
+            }
+        }
+    }
+    return vdbrad::buildScene(g);
+}
+
+// Part 1: sweeps until every voxel is within 1e-4 of E / (1 - rho), at most @a cap.
+void
+albedoTable()
+{
+    std::printf("1. furnace box res 16, 50 directions, E = 1: sweeps to 1e-4 relative "
+                "(error after the last sweep)\n");
+    std::printf("%-12s | %16s %10s | %16s %10s\n", "rho", "in-place sweeps", "error",
+        "Anderson sweeps", "error");
+    for (double rho : {0.0, 1e-6, 0.5, 0.99, 0.999, 1.0 - 1e-6}) {
+        const vdbrad::Scene scene = furnace(16, float(rho), 1.f, false);
+        const double exact = 1.0 / (1.0 - double(float(rho)));
+        std::string cells[2][2];
+        for (int accel = 0; accel < 2; ++accel) {
+            vdbrad::RadiosityOptions o;
+            o.directions = 50;
+            o.tolerance = 0.0;
+            o.accelerate = accel ? vdbrad::Acceleration::Anderson : vdbrad::Acceleration::None;
+            const int cap = accel ? 200 : 20000;
+            vdbrad::RadiositySolver solver(scene, o);
+            int reached = -1;
+            double error = 0.0;
+            while (solver.iterationCount() < cap) {
+                solver.iterate();
+                error = 0.0;
+                for (float b : solver.grey()) {
+                    error = std::max(error, std::abs(double(b) - exact) / exact);
+                }
+                if (reached < 0 && error <= 1e-4) reached = solver.iterationCount();
+                if (reached > 0 && solver.residuals().back() < 1e-9) break;
+            }
+            char buf[32];
+            std::snprintf(buf, sizeof buf, reached > 0 ? "%d" : ">%d", reached > 0 ? reached : cap);
+            cells[accel][0] = buf;
+            std::snprintf(buf, sizeof buf, "%.2g", error);
+            cells[accel][1] = buf;
+        }
+        std::printf("%-12.7g | %16s %10s | %16s %10s\n", rho, cells[0][0].c_str(),
+            cells[0][1].c_str(), cells[1][0].c_str(), cells[1][1].c_str());
+        std::fflush(stdout);
+    }
+}
+
+size_t
+countDenormals(const float* v, size_t n)
+{
+    size_t k = 0;
+    for (size_t i = 0; i < n; ++i) k += std::fpclassify(v[i]) == FP_SUBNORMAL;
+    return k;
+}
+
+// Part 2: seconds per sweep with all values scaled by @a scale, against scale 1.
+void
+denormalTimes()
+{
+    std::printf("\n2. denormals: seconds per sweep, unscaled vs every value scaled into the "
+                "denormal range\n");
+    std::printf("%-44s %10s %10s %8s %14s\n", "problem", "unscaled", "scaled", "ratio",
+        "denormal out");
+    {
+        // Half-lit furnace box, albedo 0.5: B ~ E, the gathered products w B ~ 1e-3 E.
+        const int sweeps = 6;
+        double seconds[2];
+        size_t denormals = 0, n = 0;
+        for (int k = 0; k < 2; ++k) {
+            const vdbrad::Scene scene = furnace(64, 0.5f, k ? 1e-37f : 1.f, true);
+            vdbrad::RadiosityOptions o;
+            o.directions = 300;
+            o.tolerance = 0.0;
+            o.maxIterations = sweeps;
+            o.update = vdbrad::UpdateScheme::Jacobi;
+            vdbrad::RadiositySolver solver(scene, o);
+            solver.iterate();   // the first sweep also measures hit weights: not timed
+            const auto t0 = Clock::now();
+            for (int s = 1; s < sweeps; ++s) solver.iterate();
+            seconds[k] = since(t0) / (sweeps - 1);
+            denormals = countDenormals(solver.grey().data(), scene.size());
+            n = scene.size();
+        }
+        char what[64];
+        std::snprintf(what, sizeof what, "surface: half-lit furnace 64, E 1e-37");
+        std::printf("%-44s %10.4f %10.4f %7.2fx %7zu/%zu\n", what, seconds[0], seconds[1],
+            seconds[1] / seconds[0], denormals, n);
+    }
+    {
+        // Absorbing slab (omega0 0.5, optical depth 3 per voxel): the diffuse light falls by
+        // ~e^-3 per layer, so with F0 = 1e-30 most layers hold denormal radiance.
+        const int sweeps = 6;
+        double seconds[2];
+        size_t denormals = 0, n = 0;
+        for (int k = 0; k < 2; ++k) {
+            openvdb::FloatGrid::Ptr density = openvdb::FloatGrid::create(0.f);
+            density->setName("density");
+            density->setTransform(openvdb::math::Transform::createLinearTransform(1.0));
+            density->setGridClass(openvdb::GRID_FOG_VOLUME);
+            density->tree().fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(15, 39, 15)),
+                3.f, true);
+            density->tree().voxelizeActiveTiles();
+            vdbrad::CloudOptions co;
+            co.defaultAlbedo = 0.5f;
+            const vdbrad::Cloud cloud = vdbrad::buildCloud({density}, co);
+            vdbrad::CloudTransferOptions o;
+            o.periodic = true;
+            o.directions = 300;
+            o.tolerance = 0.0;
+            o.irradiance = k ? 1e-30 : 1.0;
+            vdbrad::CloudTransfer transfer(cloud, o);
+            transfer.iterate();
+            const auto t0 = Clock::now();
+            for (int s = 1; s < sweeps; ++s) transfer.iterate();
+            seconds[k] = since(t0) / (sweeps - 1);
+            const std::vector<float> J = transfer.meanIntensity();
+            denormals = countDenormals(J.data(), J.size());
+            n = J.size();
+        }
+        std::printf("%-44s %10.4f %10.4f %7.2fx %7zu/%zu\n",
+            "cloud: absorbing slab 16x40x16, F0 1e-30", seconds[0], seconds[1],
+            seconds[1] / seconds[0], denormals, n);
+    }
+    std::fflush(stdout);
+}
+
+// Part 3: a furnace box of >= 1e7 surface voxels.
+void
+bigScene(int res, int directions)
+{
+    std::printf("\n3. big scene: furnace box res %d, rho 0.9, Anderson, %d directions asked\n",
+        res, directions);
+    auto t0 = Clock::now();
+    const vdbrad::Scene scene = furnace(res, 0.9f, 1.f, false);
+    const double build = since(t0);
+    vdbrad::RadiosityOptions o;
+    o.directions = directions;
+    o.tolerance = 1e-6;
+    o.maxIterations = 100;
+    o.accelerate = vdbrad::Acceleration::Anderson;
+    t0 = Clock::now();
+    vdbrad::RadiositySolver solver(scene, o);
+    const double setup = since(t0);
+    t0 = Clock::now();
+    solver.solve();
+    const double solve = since(t0);
+    const double exact = 1.0 / (1.0 - double(0.9f));
+    double error = 0.0;
+    for (float b : solver.grey()) error = std::max(error, std::abs(double(b) - exact) / exact);
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    const double perSweep = solve / solver.iterationCount();
+    std::printf("%zu voxels, %zu directions: scene %.1f s, setup %.1f s, %d sweeps in %.1f s "
+                "(%.2f s each, %.1f ns per voxel-direction), max error %.2g, peak RSS %.2f GiB\n",
+        scene.size(), solver.directions().size(), build, setup, solver.iterationCount(), solve,
+        perSweep, 1e9 * perSweep / (double(scene.size()) * double(solver.directions().size())),
+        error, double(ru.ru_maxrss) / (1024.0 * 1024.0));
+}
+
+} // namespace
+
+int
+main(int argc, char** argv)
+{
+    openvdb::initialize();
+    const int bigRes = argc > 1 ? std::atoi(argv[1]) : 1300;
+    const int bigDirections = argc > 2 ? std::atoi(argv[2]) : 50;
+    albedoTable();
+    denormalTimes();
+    if (bigRes > 0) bigScene(bigRes, bigDirections);
+    return 0;
+}
