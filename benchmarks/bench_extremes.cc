@@ -195,16 +195,21 @@ bigScene(int res, int directions)
     solver.solve();
     const double solve = since(t0);
     const double exact = 1.0 / (1.0 - double(0.9f));
-    double error = 0.0;
-    for (float b : solver.grey()) error = std::max(error, std::abs(double(b) - exact) / exact);
+    double error = 0.0, mean = 0.0;
+    for (float b : solver.grey()) {
+        const double e = std::abs(double(b) - exact) / exact;
+        error = std::max(error, e);
+        mean += e / double(scene.size());
+    }
     struct rusage ru;
     getrusage(RUSAGE_SELF, &ru);
     const double perSweep = solve / solver.iterationCount();
     std::printf("%zu voxels, %zu directions: scene %.1f s, setup %.1f s, %d sweeps in %.1f s "
-                "(%.2f s each, %.1f ns per voxel-direction), max error %.2g, peak RSS %.2f GiB\n",
+                "(%.2f s each, %.1f ns per voxel-direction), error max %.2g mean %.2g, "
+                "peak RSS %.2f GiB\n",
         scene.size(), solver.directions().size(), build, setup, solver.iterationCount(), solve,
         perSweep, 1e9 * perSweep / (double(scene.size()) * double(solver.directions().size())),
-        error, double(ru.ru_maxrss) / (1024.0 * 1024.0));
+        error, mean, double(ru.ru_maxrss) / (1024.0 * 1024.0));
 }
 
 } // namespace

@@ -19,6 +19,11 @@
 
 namespace vdbrad {
 
+// Closed rooms are found by a flood fill over two bits per cell of the scene's bounding box
+// (Enclosure.h): up to 2^33 cells, 2 GiB, counted in memoryEstimate(). A furnace box of 10^7
+// surface voxels (res 1300) needs 2.2e9 cells; larger boxes keep their digitisation losses.
+constexpr uint64_t kEnclosureCells = uint64_t(1) << 33;
+
 namespace {
 
 // Each group sums about directions / kGroups terms per voxel: float keeps those short sums to
@@ -328,7 +333,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
             impl.invZ[i] = inv;
         }
     });
-    impl.regions = findRegions(scene.voxels(), scene.normals(), options.lines);
+    impl.regions = findRegions(scene.voxels(), scene.normals(), options.lines, kEnclosureCells);
     for (size_t p = 0; p < 4; ++p) {
         Impl::Pattern& pattern = impl.patterns[p];
         if (pattern.directions.empty()) continue;
@@ -472,7 +477,7 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     // Enclosure's flood fill: two bits per cell of the grown bounding box, up to its cap.
     const openvdb::CoordBBox box = scene.voxels().bbox().expandBy(2);
     const double cells = double(box.dim().x()) * double(box.dim().y()) * double(box.dim().z());
-    if (cells <= double(uint64_t(1) << 31)) bytes += 2 * size_t(cells / 8.0);
+    if (cells <= double(kEnclosureCells)) bytes += 2 * size_t(cells / 8.0);
     return bytes;
 }
 
