@@ -284,8 +284,14 @@ runVoxelize(const Arguments& a)
 
     ProgressInterrupter progress(a.flag("quiet"));
     progress.start(("reading " + in).c_str());
-    // Mesh errors already start with the file name.
-    const TriangleMesh mesh = forFile("voxelize", [&] { return readMesh(in); });
+    // Mesh errors already start with the file name (and line): no label of our own.
+    const TriangleMesh mesh = [&] {
+        try {
+            return readMesh(in);
+        } catch (const std::exception& e) {
+            throw UserError(errorMessage(e));
+        }
+    }();
     progress.end(std::to_string(mesh.triangles.size()) + " triangles");
     VdbFile file;
     file.grids = forFile(in, [&] { return voxelizeMesh(mesh, o, &progress); });
@@ -465,13 +471,24 @@ radiosityValues(const VdbFile& file, const std::string& label, int& channels)
 {
     const openvdb::GridBase::ConstPtr grid = findGrid(file.grids, names::kRadiosity);
     if (!grid) throw UserError(label + ": no grid named 'radiosity' (solve it first)");
+    // One map entry per voxel: a huge active tile must fail here, not exhaust memory.
+    forFile(label, [&] { VoxelIndex::checkVoxelCount(grid->activeVoxelCount()); });
     std::map<openvdb::Coord, openvdb::Vec3d> values;
+    auto add = [&](const openvdb::Coord& xyz, const openvdb::Vec3d& v) {
+        if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) {
+            std::ostringstream os;
+            os << label << ": radiosity at voxel " << formatCoord(xyz) << " is "
+               << (std::isfinite(v[0]) ? std::isfinite(v[1]) ? v[2] : v[1] : v[0]);
+            throw UserError(os.str());
+        }
+        values[xyz] = v;
+    };
     if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) {
         channels = 1;
-        for (auto it = f->cbeginValueOn(); it; ++it) values[it.getCoord()] = openvdb::Vec3d(*it, 0, 0);
+        for (auto it = f->cbeginValueOn(); it; ++it) add(it.getCoord(), openvdb::Vec3d(*it, 0, 0));
     } else if (auto v = openvdb::GridBase::constGrid<openvdb::Vec3SGrid>(grid)) {
         channels = 3;
-        for (auto it = v->cbeginValueOn(); it; ++it) values[it.getCoord()] = openvdb::Vec3d(*it);
+        for (auto it = v->cbeginValueOn(); it; ++it) add(it.getCoord(), openvdb::Vec3d(*it));
     } else {
         throw UserError(label + ": grid 'radiosity' is " + grid->valueType()
             + ", expected float or vec3s");
