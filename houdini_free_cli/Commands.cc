@@ -366,6 +366,14 @@ runInfo(const Arguments& a)
     const GridRoles roles = forFile(label, [&] { return identifyRoles(file.grids, options.surface); });
     std::cout << "scene contract:\n";
     int status = 0;
+    // The first problem is the one error line; a second one (a file with a bad surface and a bad
+    // cloud) is described with the rest, on standard output.
+    auto report = [&](const char* role, const std::exception& e) {
+        std::cout << "  " << role << " error: " << errorMessage(e) << "\n";
+        std::cout.flush();
+        if (status == 0) std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
+        status = 1;
+    };
     if (roles.surface) {
         try {
             ProgressInterrupter progress(true);
@@ -385,9 +393,7 @@ runInfo(const Arguments& a)
             std::cout << "  solution:  " << (scene.isRgb() ? "RGB" : "grey") << " radiosity\n";
             if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
         } catch (const std::exception& e) {
-            std::cout.flush();
-            std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
-            status = 1;
+            report("surface:  ", e);
         }
     } else {
         std::cout << "  surface:   none (no level set, no vec3s grid named 'normal')\n";
@@ -403,9 +409,7 @@ runInfo(const Arguments& a)
                       << hi * cloud.voxelSize() << "\n";
             std::cout << "  cloud albedo: " << describeAttribute(cloud.albedo(), "none: 1") << "\n";
         } catch (const std::exception& e) {
-            std::cout.flush();
-            std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
-            status = 1;
+            report("cloud:    ", e);
         }
     } else {
         std::cout << "  cloud:     none (no float grid named 'density')\n";

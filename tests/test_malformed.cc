@@ -718,4 +718,17 @@ TEST_F(MalformedTest, ReaderCrashIsReportedNotInherited)
     }
 }
 
+TEST_F(MalformedTest, InfoGivesOneErrorLineForABadSurfaceAndABadCloud)
+{
+    auto n = patch();
+    n->tree().setValue({1, 0, 1}, openvdb::Vec3f(kNaN, 0, 0));
+    auto d = fog();
+    d->tree().setValueOn({1, 2, 3}, -1.f);
+    writeBytes("bad.vdb", bytesOf({n, d}));
+    expectRefused(reader("info"), "bad.vdb", "normal at voxel (1, 0, 1) is");
+    const test::ToolResult r = sh("vdbrad info bad.vdb");
+    EXPECT_NE(r.out.find("  cloud:     error: density at voxel (1, 2, 3) is -1"),
+        std::string::npos) << r.out;
+}
+
 } // namespace

@@ -161,6 +161,27 @@ limitChildAddressSpace(size_t fileSize)
     ::setrlimit(RLIMIT_AS, &rl);
 }
 
+// A corrupt count makes OpenVDB loop billions of times over the end of the data (RootNode's
+// tile loop does not check the stream). A valid file parses at well under 1 s per MB: the child
+// gets 5 s of CPU plus 5 s per MB, then SIGXCPU.
+unsigned
+childCpuSeconds(size_t fileSize)
+{
+    return 5 + unsigned(5 * (fileSize >> 20));
+}
+
+void
+limitChildCpu(size_t fileSize)
+{
+    const rlim_t seconds = childCpuSeconds(fileSize);
+    struct rlimit rl;
+    if (::getrlimit(RLIMIT_CPU, &rl) != 0) return;
+    if (rl.rlim_cur == RLIM_INFINITY || seconds < rl.rlim_cur) {
+        rl.rlim_cur = seconds;
+        ::setrlimit(RLIMIT_CPU, &rl);
+    }
+}
+
 // Exit codes of the checking child (below 128, and unlike a sanitizer's or libFuzzer's).
 constexpr int kChildParsed = 0, kChildThrew = 42;
 
@@ -193,6 +214,12 @@ parseInChild(const std::string& bytes)
             ::close(null);
         }
         limitChildAddressSpace(bytes.size());
+        limitChildCpu(bytes.size());
+        // The application's crash handlers (or a fuzzer's) are not for this child: a crash must
+        // reach the parent as the signal it is.
+        for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGXCPU}) {
+            std::signal(sig, SIG_DFL);
+        }
         int code = kChildParsed;
         std::string message;
         try {
@@ -238,6 +265,10 @@ parseInChild(const std::string& bytes)
     if (WIFEXITED(status) && WEXITSTATUS(status) == kChildParsed) return Guard::Parsed;
     if (WIFEXITED(status) && WEXITSTATUS(status) == kChildThrew) {
         OPENVDB_THROW(openvdb::IoError, message);
+    }
+    if (WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU) {
+        OPENVDB_THROW(openvdb::IoError, "corrupt VDB data (the OpenVDB reader did not finish "
+            "within " << childCpuSeconds(bytes.size()) << " s of CPU time)");
     }
     if (WIFSIGNALED(status)) {
         const char* name = ::strsignal(WTERMSIG(status));
