@@ -310,8 +310,14 @@ runVoxelize(const Arguments& a)
 
     ProgressInterrupter progress(a.flag("quiet"));
     progress.start(("reading " + in).c_str());
-    // Mesh errors already start with the file name.
-    const TriangleMesh mesh = forFile("voxelize", [&] { return readMesh(in); });
+    // Mesh errors already start with the file name (and line): no label of our own.
+    const TriangleMesh mesh = [&] {
+        try {
+            return readMesh(in);
+        } catch (const std::exception& e) {
+            throw UserError(errorMessage(e));
+        }
+    }();
     progress.end(std::to_string(mesh.triangles.size()) + " triangles");
     VdbFile file;
     file.grids = forFile(in, [&] { return voxelizeMesh(mesh, o, &progress); });
@@ -386,6 +392,14 @@ runInfo(const Arguments& a)
     const GridRoles roles = forFile(label, [&] { return identifyRoles(file.grids, options.surface); });
     std::cout << "scene contract:\n";
     int status = 0;
+    // The first problem is the one error line; a second one (a file with a bad surface and a bad
+    // cloud) is described with the rest, on standard output.
+    auto report = [&](const char* role, const std::exception& e) {
+        std::cout << "  " << role << " error: " << errorMessage(e) << "\n";
+        std::cout.flush();
+        if (status == 0) std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
+        status = 1;
+    };
     if (roles.surface) {
         try {
             ProgressInterrupter progress(true);
@@ -405,9 +419,7 @@ runInfo(const Arguments& a)
             std::cout << "  solution:  " << (scene.isRgb() ? "RGB" : "grey") << " radiosity\n";
             if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
         } catch (const std::exception& e) {
-            std::cout.flush();
-            std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
-            status = 1;
+            report("surface:  ", e);
         }
     } else {
         std::cout << "  surface:   none (no level set, no vec3s grid named 'normal')\n";
@@ -423,9 +435,7 @@ runInfo(const Arguments& a)
                       << hi * cloud.voxelSize() << "\n";
             std::cout << "  cloud albedo: " << describeAttribute(cloud.albedo(), "none: 1") << "\n";
         } catch (const std::exception& e) {
-            std::cout.flush();
-            std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
-            status = 1;
+            report("cloud:    ", e);
         }
     } else {
         std::cout << "  cloud:     none (no float grid named 'density')\n";
@@ -491,13 +501,24 @@ radiosityValues(const VdbFile& file, const std::string& label, int& channels)
 {
     const openvdb::GridBase::ConstPtr grid = findGrid(file.grids, names::kRadiosity);
     if (!grid) throw UserError(label + ": no grid named 'radiosity' (solve it first)");
+    // One map entry per voxel: a huge active tile must fail here, not exhaust memory.
+    forFile(label, [&] { VoxelIndex::checkVoxelCount(grid->activeVoxelCount()); });
     std::map<openvdb::Coord, openvdb::Vec3d> values;
+    auto add = [&](const openvdb::Coord& xyz, const openvdb::Vec3d& v) {
+        if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) {
+            std::ostringstream os;
+            os << label << ": radiosity at voxel " << formatCoord(xyz) << " is "
+               << (std::isfinite(v[0]) ? std::isfinite(v[1]) ? v[2] : v[1] : v[0]);
+            throw UserError(os.str());
+        }
+        values[xyz] = v;
+    };
     if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) {
         channels = 1;
-        for (auto it = f->cbeginValueOn(); it; ++it) values[it.getCoord()] = openvdb::Vec3d(*it, 0, 0);
+        for (auto it = f->cbeginValueOn(); it; ++it) add(it.getCoord(), openvdb::Vec3d(*it, 0, 0));
     } else if (auto v = openvdb::GridBase::constGrid<openvdb::Vec3SGrid>(grid)) {
         channels = 3;
-        for (auto it = v->cbeginValueOn(); it; ++it) values[it.getCoord()] = openvdb::Vec3d(*it);
+        for (auto it = v->cbeginValueOn(); it; ++it) add(it.getCoord(), openvdb::Vec3d(*it));
     } else {
         throw UserError(label + ": grid 'radiosity' is " + grid->valueType()
             + ", expected float or vec3s");

@@ -558,10 +558,13 @@ TEST_F(CliTest, InterruptedSolveExitsCleanlyWithoutOutput)
 {
     const Result made = sh("vdbrad make cornell big.vdb --res 96 --quiet");
     ASSERT_EQ(made.status, 0) << made.err;
-    // SIGINT a second into a solve that would take far longer.
-    // (The tool itself, not the shell function wrapping it, must get the signal.)
+    // SIGINT once the solve has started (reading a file takes a second on a loaded machine, and
+    // a background job ignores SIGINT until the tool installs its handler), into a solve that
+    // would take far longer. (The tool itself, not the shell function wrapping it, must get it.)
     const Result r = sh("'" VDBRAD_CLI_PATH "' solve big.vdb out.vdb --directions 5000 "
-                        "--iterations 50 & pid=$!; sleep 1; kill -INT $pid; wait $pid");
+                        "--iterations 50 2> log & pid=$!; "
+                        "until grep -q '^solving' log || ! kill -0 $pid; do sleep 0.1; done; "
+                        "kill -INT $pid; wait $pid; s=$?; cat log >&2; rm log; exit $s");
     EXPECT_EQ(r.status, 130) << r.err;
     EXPECT_NE(r.err.find("vdbrad: cancelled by signal 2; no output written"), std::string::npos)
         << r.err;

@@ -108,6 +108,14 @@ checkTransform(const openvdb::GridBase& grid)
     if (!std::isfinite(vs) || !(vs > 0.0)) {
         OPENVDB_THROW(openvdb::ValueError, "grid '" << grid.getName() << "' has voxel size " << vs);
     }
+    // A file can hold a scale OpenVDB's own maps refuse (|det| below its tolerance, e.g. a voxel
+    // size of 1e-30); copying the transform, as every user of the grid does, would throw later.
+    try {
+        (void)xform.baseMap()->getAffineMap();
+    } catch (const openvdb::ArithmeticError&) {
+        OPENVDB_THROW(openvdb::ValueError, "grid '" << grid.getName() << "' has voxel size " << vs
+            << ", too small for OpenVDB's transforms; rescale the scene");
+    }
 }
 
 void

@@ -1,8 +1,13 @@
 #include "vdbrad/GridIO.h"
 
+#include "vdbrad/Errors.h"
+
 #include <openvdb/io/Stream.h>
 
+#include <tbb/task_arena.h>
+
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <fcntl.h>
@@ -10,7 +15,9 @@
 #include <istream>
 #include <iterator>
 #include <sstream>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <vector>
 
@@ -87,15 +94,10 @@ shortReason(const std::exception& e)
     return out;
 }
 
-} // namespace
-
+// OpenVDB's parse of bytes already known to start with the magic number.
 VdbFile
-parseVdb(const std::string& bytes)
+parseUnguarded(const std::string& bytes)
 {
-    if (bytes.empty()) OPENVDB_THROW(openvdb::IoError, "empty file");
-    if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
-        OPENVDB_THROW(openvdb::IoError, "not a VDB file (bad magic number)");
-    }
     openvdb::initialize();
     MemoryBuffer buffer(bytes);
     std::istream in(&buffer);
@@ -117,6 +119,192 @@ parseVdb(const std::string& bytes)
     }
     if (!file.metadata) file.metadata = std::make_shared<openvdb::MetaMap>();
     return file;
+}
+
+// Touches every leaf buffer (its first and last value), one thread: a leaf the reader left
+// without a buffer or with a wild one fails here rather than in the parent.
+struct TouchLeaves
+{
+    template<typename GridT>
+    void operator()(const GridT& grid) const
+    {
+        using LeafT = typename GridT::TreeType::LeafNodeType;
+        for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
+            const typename GridT::ValueType first = leaf->getValue(0);
+            const typename GridT::ValueType last = leaf->getValue(LeafT::SIZE - 1);
+            sink = sink + (first == last);
+        }
+    }
+    static volatile unsigned sink;
+};
+volatile unsigned TouchLeaves::sink = 0;
+
+// Corrupt sizes make OpenVDB allocate gigabytes (a "string" of 4 GiB, zero-filled, page by page)
+// before failing. The child may grow its address space by 256 MiB plus 1024 times the file size,
+// far beyond what a valid file expands to (a constant leaf compresses some 100 times), so such
+// files fail at once with std::bad_alloc.
+void
+limitChildAddressSpace(size_t fileSize)
+{
+    unsigned long pages = 0;
+    if (FILE* f = std::fopen("/proc/self/statm", "r")) {
+        if (std::fscanf(f, "%lu", &pages) != 1) pages = 0;
+        std::fclose(f);
+    }
+    const long pageSize = ::sysconf(_SC_PAGESIZE);
+    if (pages == 0 || pageSize <= 0) return;
+    const double limit = double(pages) * double(pageSize) + double(256 << 20)
+        + 1024.0 * double(fileSize);
+    struct rlimit rl;
+    if (::getrlimit(RLIMIT_AS, &rl) != 0 || limit >= double(rl.rlim_cur)) return;
+    rl.rlim_cur = rlim_t(limit);
+    ::setrlimit(RLIMIT_AS, &rl);
+}
+
+// A corrupt count makes OpenVDB loop billions of times over the end of the data (RootNode's
+// tile loop does not check the stream). A valid file parses at well under 1 s per MB: the child
+// gets 5 s of CPU plus 5 s per MB, then SIGXCPU.
+unsigned
+childCpuSeconds(size_t fileSize)
+{
+    return 5 + unsigned(5 * (fileSize >> 20));
+}
+
+void
+limitChildCpu(size_t fileSize)
+{
+    const rlim_t seconds = childCpuSeconds(fileSize);
+    struct rlimit rl;
+    if (::getrlimit(RLIMIT_CPU, &rl) != 0) return;
+    if (rl.rlim_cur == RLIM_INFINITY || seconds < rl.rlim_cur) {
+        rl.rlim_cur = seconds;
+        ::setrlimit(RLIMIT_CPU, &rl);
+    }
+}
+
+// Exit codes of the checking child (below 128, and unlike a sanitizer's or libFuzzer's).
+constexpr int kChildParsed = 0, kChildThrew = 42;
+
+enum class Guard { Parsed, Threw, Unavailable };
+
+// Parses @a bytes in a forked child (see GridIO.h); on a crash or an error there, throws the
+// IoError the parent would have got, without parsing here.
+Guard
+parseInChild(const std::string& bytes)
+{
+    int fds[2];
+    if (::pipe(fds) != 0) return Guard::Unavailable;
+    const pid_t pid = ::fork();
+    if (pid < 0) {
+        ::close(fds[0]);
+        ::close(fds[1]);
+        return Guard::Unavailable;
+    }
+    if (pid == 0) {
+        // The child has only this thread: TBB must not wait for the parent's workers (Tree's
+        // destructor uses parallel_for), so everything runs in an arena of one. _exit skips
+        // atexit handlers and stdio buffers that belong to the parent.
+        ::close(fds[0]);
+        // OpenVDB's warnings and glibc's abort messages would repeat or precede the parent's
+        // one line: the child is silent.
+        const int null = ::open("/dev/null", O_WRONLY);
+        if (null >= 0) {
+            ::dup2(null, STDOUT_FILENO);
+            ::dup2(null, STDERR_FILENO);
+            ::close(null);
+        }
+        limitChildAddressSpace(bytes.size());
+        limitChildCpu(bytes.size());
+        // The application's crash handlers (or a fuzzer's) are not for this child: a crash must
+        // reach the parent as the signal it is.
+        for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGXCPU}) {
+            std::signal(sig, SIG_DFL);
+        }
+        int code = kChildParsed;
+        std::string message;
+        try {
+            tbb::task_arena serial(1);
+            serial.execute([&] {
+                VdbFile file = parseUnguarded(bytes);
+                for (const auto& g : file.grids) g->apply<openvdb::GridTypes>(TouchLeaves());
+                // Freeing everything lets glibc catch heap corruption here, not in the parent.
+                file.grids.clear();
+            });
+        } catch (const std::exception& e) {
+            code = kChildThrew;
+            message = errorMessage(e);
+        } catch (...) {
+            code = kChildThrew;
+            message = "corrupt VDB data";
+        }
+        for (size_t done = 0; done < message.size();) {
+            const ssize_t n = ::write(fds[1], message.data() + done, message.size() - done);
+            if (n <= 0) break;
+            done += size_t(n);
+        }
+        ::_exit(code);
+    }
+    ::close(fds[1]);
+    // Read the message before waiting so a long one cannot block the child.
+    std::string message;
+    char chunk[512];
+    for (;;) {
+        const ssize_t n = ::read(fds[0], chunk, sizeof(chunk));
+        if (n > 0) message.append(chunk, size_t(n));
+        else if (n < 0 && errno == EINTR) continue;
+        else break;
+    }
+    ::close(fds[0]);
+    int status = 0;
+    pid_t r = -1;
+    do {
+        r = ::waitpid(pid, &status, 0);
+    } while (r < 0 && errno == EINTR);
+    // ECHILD: the application reaps children itself (SIGCHLD ignored); parse unguarded.
+    if (r != pid) return Guard::Unavailable;
+    if (WIFEXITED(status) && WEXITSTATUS(status) == kChildParsed) return Guard::Parsed;
+    if (WIFEXITED(status) && WEXITSTATUS(status) == kChildThrew) {
+        OPENVDB_THROW(openvdb::IoError, message);
+    }
+    if (WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU) {
+        OPENVDB_THROW(openvdb::IoError, "corrupt VDB data (the OpenVDB reader did not finish "
+            "within " << childCpuSeconds(bytes.size()) << " s of CPU time)");
+    }
+    if (WIFSIGNALED(status)) {
+        const char* name = ::strsignal(WTERMSIG(status));
+        OPENVDB_THROW(openvdb::IoError, "corrupt VDB data (the OpenVDB reader crashed on it: "
+            << (name ? name : "signal " + std::to_string(WTERMSIG(status))) << ")");
+    }
+    // A sanitizer or fuzzer runtime reports a crash by exiting with its own code.
+    OPENVDB_THROW(openvdb::IoError, "corrupt VDB data (the OpenVDB reader failed on it: exit "
+        "status " << WEXITSTATUS(status) << ")");
+}
+
+} // namespace
+
+VdbFile
+parseVdb(const std::string& bytes)
+{
+    if (bytes.empty()) OPENVDB_THROW(openvdb::IoError, "empty file");
+    if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
+        OPENVDB_THROW(openvdb::IoError, "not a VDB file (bad magic number)");
+    }
+    // OpenVDB 10 reads a file from a newer version as its own, with a warning, and garbage
+    // results; older than the root-node map, it allocates gigabytes before failing.
+    uint32_t version = 0;
+    if (bytes.size() >= sizeof(kMagic) + sizeof(version)) {
+        std::memcpy(&version, bytes.data() + sizeof(kMagic), sizeof(version));
+    }
+    if (version < openvdb::OPENVDB_FILE_VERSION_ROOTNODE_MAP
+        || version > openvdb::OPENVDB_FILE_VERSION) {
+        OPENVDB_THROW(openvdb::IoError, "unsupported VDB file format version " << version
+            << " (OpenVDB " << openvdb::getLibraryVersionString() << " reads versions "
+            << openvdb::OPENVDB_FILE_VERSION_ROOTNODE_MAP << " to " << openvdb::OPENVDB_FILE_VERSION
+            << ")");
+    }
+    openvdb::initialize();   // before the fork: the child then inherits the registries
+    parseInChild(bytes);
+    return parseUnguarded(bytes);
 }
 
 VdbFile

@@ -5,7 +5,9 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <cmath>
 #include <limits>
+#include <unistd.h>
 
 namespace vdbrad {
 
@@ -15,8 +17,11 @@ VoxelIndex::VoxelIndex()
 }
 
 VoxelIndex::VoxelIndex(const openvdb::MaskTree& mask)
-    : mTree(new IndexTree(mask, /*inactive=*/-1, /*active=*/0, openvdb::TopologyCopy()))
 {
+    // Counted before anything is allocated: a small file can hold an active tile of 4096^3
+    // voxels, which densified below would exhaust memory instead of failing.
+    checkVoxelCount(mask.activeVoxelCount());
+    mTree.reset(new IndexTree(mask, /*inactive=*/-1, /*active=*/0, openvdb::TopologyCopy()));
     // Active tiles would make "one array entry per voxel" ambiguous: densify them first.
     mTree->voxelizeActiveTiles();
 
@@ -39,9 +44,6 @@ VoxelIndex::VoxelIndex(const openvdb::MaskTree& mask)
         total += counts[n];
     }
     mLeafBegin[leafCount] = total;
-    if (total > size_t(std::numeric_limits<int32_t>::max())) {
-        OPENVDB_THROW(openvdb::ValueError, "too many voxels: " << total << " (at most 2^31 - 1)");
-    }
 
     mCoords.resize(total);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, leafCount),
@@ -54,6 +56,24 @@ VoxelIndex::VoxelIndex(const openvdb::MaskTree& mask)
                 }
             }
         });
+}
+
+void
+VoxelIndex::checkVoxelCount(uint64_t count)
+{
+    if (count > uint64_t(std::numeric_limits<int32_t>::max())) {
+        OPENVDB_THROW(openvdb::ValueError, "too many voxels: " << count << " (at most 2^31 - 1)");
+    }
+    // The index alone (a coordinate and an int32 slot per voxel) must fit in this machine's
+    // memory; its users need several times more.
+    const double need = double(count) * double(sizeof(openvdb::Coord) + sizeof(int32_t));
+    const long pages = ::sysconf(_SC_PHYS_PAGES), pageSize = ::sysconf(_SC_PAGESIZE);
+    const double have = pages > 0 && pageSize > 0 ? double(pages) * double(pageSize) : 0.0;
+    if (have > 0.0 && need > have) {
+        OPENVDB_THROW(openvdb::ValueError, "too many voxels: " << count << " would need "
+            << std::lround(need / double(1 << 30)) << " GiB for their index alone, more than "
+            "the " << std::lround(have / double(1 << 30)) << " GiB of memory of this machine");
+    }
 }
 
 openvdb::CoordBBox

@@ -30,7 +30,7 @@ public:
     VoxelIndex();
 
     /// @brief Index the active voxels of @a mask (any topology; its values are ignored).
-    /// @throw openvdb::ValueError if there are more than 2^31 - 1 voxels.
+    /// @throw openvdb::ValueError as checkVoxelCount(), before allocating anything.
     explicit VoxelIndex(const openvdb::MaskTree& mask);
 
     /// Number of voxels.
@@ -64,6 +64,11 @@ public:
 
     /// Index-space bounding box of the set (empty box if the set is empty).
     openvdb::CoordBBox bbox() const;
+
+    /// @brief Refuse a set of @a count voxels before allocating it.
+    /// @throw openvdb::ValueError above 2^31 - 1 voxels, or if the index alone would not fit in
+    ///        this machine's physical memory
+    static void checkVoxelCount(uint64_t count);
 
 private:
     IndexTree::Ptr mTree;
