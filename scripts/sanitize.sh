@@ -9,8 +9,10 @@ cd "$(dirname "$0")/.."
 # (files, meshes, command lines, through the tool itself) and each solver once.
 suites=${SANITIZE_SUITES:-"test_cli;test_io;test_scene;test_mesh"}
 [ "$suites" = all ] && suites=""
-# Numeric studies that only repeat the code paths other tests cover, at 10x the instrumented cost.
-exclude=${SANITIZE_EXCLUDE:-"^$"}
+# GridIOTest.MalformedBytesGiveIoErrors: some cuts make OpenVDB's bloscFromStream new[] ~100 TB;
+# vdbrad turns the std::bad_alloc into an IoError, but ASan's operator new aborts instead of
+# throwing (allocator_may_return_null does not change that for new).
+exclude=${SANITIZE_EXCLUDE:-"GridIOTest\.MalformedBytesGiveIoErrors"}
 
 # halt_on_error: stop at the first report; the suppressions name OpenVDB/TBB singletons only.
 export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:strict_string_checks=1"
