@@ -28,8 +28,8 @@ for name in $targets; do
   if VDBRAD_FUZZ_SEEDS=$corpus "build-fuzz/fuzz/$name" "$corpus" -max_total_time="$seconds" \
       -timeout=10 -rss_limit_mb=2048 -artifact_prefix="build-fuzz/artifacts/$name-" \
       -print_final_stats=1 "$@" >"$log" 2>&1; then
-    grep -E "^(Done|stat::number_of_executed_units|stat::average_exec_per_sec|stat::new_units_added)" "$log" \
-      | sed "s/^/  /"
+    grep -E "^(Done|stat::(number_of_executed_units|average_exec_per_sec|new_units_added))" \
+      "$log" | sed "s/^/  /"
   else
     echo "fuzz: $name FAILED; the end of $log:" >&2
     tail -n 60 "$log" >&2
