@@ -2,10 +2,12 @@
 # Installs vdbrad's build dependencies from Debian packages (idempotent; run as root or with sudo).
 # libboost-dev / libboost-iostreams-dev: Debian 12's libopenvdb-dev needs them to compile and for
 # its FindOpenVDB.cmake. libopenvdb-tools brings vdb_tool/vdb_print (interop tests), openexr brings
-# exrheader, time brings /usr/bin/time (peak memory in samples/trade_study.sh).
+# exrheader, time brings /usr/bin/time (peak memory in samples/trade_study.sh). clang and
+# libclang-rt-14-dev (libFuzzer and clang's sanitizer runtimes, only recommended by clang) build
+# the fuzz targets (scripts/fuzz.sh); g++'s own ASan/UBSan runtimes serve scripts/sanitize.sh.
 set -euo pipefail
 pkgs=(cmake g++ make libopenvdb-dev libopenvdb-tools libboost-dev libboost-iostreams-dev
-      libopenexr-dev libglm-dev libgtest-dev openexr time)
+      libopenexr-dev libglm-dev libgtest-dev openexr time clang libclang-rt-14-dev)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Builds every fuzz/fuzz_*.cc as a libFuzzer program with clang (build-fuzz/, library instrumented
+# with ASan + UBSan) and runs each for FUZZ_SECONDS (default 30) from the seed corpus the target
+# writes itself (fuzz/Seeds.h). Fails on any crash, sanitizer report, leak, uncaught exception,
+# hang (> 10 s on one input) or memory blow-up (> 2 GiB); the input is kept in
+# build-fuzz/artifacts/ (replay: build-fuzz/fuzz/NAME build-fuzz/artifacts/FILE).
+# FUZZ_TARGETS: names to run (default: all); further arguments go to libFuzzer, e.g. -runs=N.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds=${FUZZ_SECONDS:-30}
+targets=${FUZZ_TARGETS:-$(for f in fuzz/fuzz_*.cc; do basename "$f" .cc; done)}
+
+cmake -S . -B build-fuzz -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
+  -DCMAKE_BUILD_TYPE=Debug -DVDBRAD_FUZZ=ON -DVDBRAD_BUILD_TESTS=OFF \
+  -DVDBRAD_BUILD_BENCHMARKS=OFF >/dev/null
+# shellcheck disable=SC2086 # one target name per word
+cmake --build build-fuzz -j"$(nproc)" --target $targets
+
+export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
+export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
+mkdir -p build-fuzz/artifacts build-fuzz/logs
+status=0
+for name in $targets; do
+  corpus=build-fuzz/corpus/$name
+  log=build-fuzz/logs/$name.log
+  mkdir -p "$corpus"
+  echo "fuzz: $name for ${seconds} s (log: $log)"
+  if VDBRAD_FUZZ_SEEDS=$corpus "build-fuzz/fuzz/$name" "$corpus" -max_total_time="$seconds" \
+      -timeout=10 -rss_limit_mb=2048 -artifact_prefix="build-fuzz/artifacts/$name-" \
+      -print_final_stats=1 "$@" >"$log" 2>&1; then
+    grep -E "^(Done|stat::(number_of_executed_units|average_exec_per_sec|new_units_added))" \
+      "$log" | sed "s/^/  /"
+  else
+    echo "fuzz: $name FAILED; the end of $log:" >&2
+    tail -n 60 "$log" >&2
+    status=1
+  fi
+done
+exit $status
