@@ -12,7 +12,10 @@ suites=${SANITIZE_SUITES:-"test_cli;test_io;test_scene;test_mesh"}
 # GridIOTest.MalformedBytesGiveIoErrors: some cuts make OpenVDB's bloscFromStream new[] ~100 TB;
 # vdbrad turns the std::bad_alloc into an IoError, but ASan's operator new aborts instead of
 # throwing (allocator_may_return_null does not change that for new).
-exclude=${SANITIZE_EXCLUDE:-"GridIOTest\.MalformedBytesGiveIoErrors"}
+# CliTest.MemoryEstimateIsPrinted...: it compares the printed estimate with the measured peak
+# resident set, which ASan's shadow memory and quarantine inflate (measured 1.6x); the plain
+# build runs it.
+exclude=${SANITIZE_EXCLUDE:-"GridIOTest\.MalformedBytesGiveIoErrors|CliTest\.MemoryEstimateIsPrinted"}
 
 # halt_on_error: stop at the first report; the suppressions name OpenVDB/TBB singletons only.
 export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:strict_string_checks=1"
