@@ -21,32 +21,13 @@ namespace {
 
 using Result = test::ToolResult;
 using test::exists;
+using test::like;
+using test::patch;
 using test::slurp;
 
 class CliTest : public test::ToolTest
 {
 };
-
-openvdb::Vec3SGrid::Ptr
-patch(openvdb::Vec3f n = openvdb::Vec3f(0, 1, 0))
-{
-    auto g = openvdb::Vec3SGrid::create();
-    g->setName("normal");
-    g->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
-    for (int x = 0; x < 6; ++x) for (int z = 0; z < 6; ++z) g->tree().setValueOn({x, 0, z}, n);
-    return g;
-}
-
-template<typename GridT>
-typename GridT::Ptr
-like(const openvdb::GridBase& ref, const std::string& name, typename GridT::ValueType v)
-{
-    auto g = GridT::create();
-    g->setName(name);
-    g->setTransform(ref.transform().copy());
-    for (int x = 0; x < 6; ++x) for (int z = 0; z < 6; ++z) g->tree().setValueOn({x, 0, z}, v);
-    return g;
-}
 
 void
 write(const std::string& path, const openvdb::GridPtrVec& grids)

@@ -5,9 +5,16 @@
 
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <sys/stat.h>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
 #include <dirent.h>
+#include <fstream>
+#include <functional>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 using namespace vdbrad;
 
@@ -115,6 +122,36 @@ TEST_F(GridIOTest, MalformedBytesGiveIoErrors)
         EXPECT_THROW(parseVdb(good.substr(0, cut)), openvdb::IoError) << "cut at " << cut;
     }
     EXPECT_EQ(parseVdb(good).grids.size(), 3u);
+}
+
+// The crash guard on work that returns, throws, crashes, spins or hangs: every outcome is one
+// IoError naming what happened (or success), within the limits, and the parent goes on.
+TEST_F(GridIOTest, GuardReportsHowTheChildEnded)
+{
+    auto outcome = [](const std::function<void()>& work, unsigned wall) {
+        try {
+            return std::string(runGuarded(work, 0, wall) ? "done" : "unavailable");
+        } catch (const openvdb::IoError& e) {
+            return errorMessage(e);
+        }
+    };
+    EXPECT_EQ(outcome([] {}, 0), "done");
+    EXPECT_EQ(outcome([] { OPENVDB_THROW(openvdb::IoError, "bad sizes"); }, 0), "bad sizes");
+    EXPECT_EQ(outcome([] { std::raise(SIGSEGV); }, 0),
+        "corrupt VDB data (the OpenVDB reader crashed on it: Segmentation fault)");
+    EXPECT_EQ(outcome([] { std::abort(); }, 0),
+        "corrupt VDB data (the OpenVDB reader crashed on it: Aborted)");
+    // A deadlock spends no CPU time: only the wall-clock limit ends it (1 s here).
+    const auto t0 = std::chrono::steady_clock::now();
+    EXPECT_EQ(outcome([] { for (;;) ::pause(); }, 1),
+        "corrupt VDB data (the OpenVDB reader did not finish within 1 s; it may have deadlocked)");
+    const double waited =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_GE(waited, 1.0);
+    EXPECT_LT(waited, 20.0) << "the hung child must be killed at its deadline";
+    // Nothing is left behind: no zombie or running child.
+    EXPECT_EQ(::waitpid(-1, nullptr, WNOHANG), -1);
+    EXPECT_EQ(errno, ECHILD);
 }
 
 TEST_F(GridIOTest, AtomicWriteNeverLeavesPartialFiles)

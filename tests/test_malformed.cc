@@ -24,6 +24,8 @@ using namespace vdbrad;
 namespace {
 
 using test::exists;
+using test::like;
+using test::patch;
 using test::slurp;
 using Grids = openvdb::GridPtrVec;
 
@@ -35,39 +37,6 @@ xform(double voxelSize, openvdb::Vec3d offset = openvdb::Vec3d(0.0))
     auto t = openvdb::math::Transform::createLinearTransform(voxelSize);
     t->postTranslate(offset);
     return t;
-}
-
-// A 6 x 6 patch of surface voxels facing +y, at index @a origin.
-openvdb::Vec3SGrid::Ptr
-patch(openvdb::Vec3f n = openvdb::Vec3f(0, 1, 0), double voxelSize = 0.1,
-    openvdb::Coord origin = openvdb::Coord(0))
-{
-    auto g = openvdb::Vec3SGrid::create();
-    g->setName("normal");
-    g->setTransform(xform(voxelSize));
-    for (int x = 0; x < 6; ++x) {
-        for (int z = 0; z < 6; ++z) g->tree().setValueOn(origin.offsetBy(x, 0, z), n);
-    }
-    return g;
-}
-
-// A grid named @a name on @a ref's transform and active voxels, every value @a v.
-template<typename GridT>
-typename GridT::Ptr
-like(const openvdb::GridBase& ref, const std::string& name, typename GridT::ValueType v)
-{
-    auto g = GridT::create();
-    g->setName(name);
-    g->setTransform(ref.transform().copy());
-    const auto* r = dynamic_cast<const openvdb::Vec3SGrid*>(&ref);
-    const auto* f = dynamic_cast<const openvdb::FloatGrid*>(&ref);
-    if (r) {
-        for (auto it = r->cbeginValueOn(); it; ++it) g->tree().setValueOn(it.getCoord(), v);
-    }
-    if (f) {
-        for (auto it = f->cbeginValueOn(); it; ++it) g->tree().setValueOn(it.getCoord(), v);
-    }
-    return g;
 }
 
 // A 4^3 block of fog at index @a origin.

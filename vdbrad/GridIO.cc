@@ -6,7 +6,9 @@
 
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -15,6 +17,7 @@
 #include <istream>
 #include <iterator>
 #include <sstream>
+#include <poll.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -182,23 +185,54 @@ limitChildCpu(size_t fileSize)
     }
 }
 
-// Exit codes of the checking child (below 128, and unlike a sanitizer's or libFuzzer's).
-constexpr int kChildParsed = 0, kChildThrew = 42;
-
-enum class Guard { Parsed, Threw, Unavailable };
-
-// Parses @a bytes in a forked child (see GridIO.h); on a crash or an error there, throws the
-// IoError the parent would have got, without parsing here.
-Guard
-parseInChild(const std::string& bytes)
+// A child that sleeps or deadlocks (a lock inherited mid-operation across fork(), a reader that
+// waits forever) spends no CPU time, so the CPU limit never fires: the parent also gives up after
+// three times the CPU allowance of wall-clock time plus 15 s (30 s for a small file), enough for a
+// loaded machine.
+unsigned
+childWallSeconds(size_t fileSize)
 {
+    return 3 * childCpuSeconds(fileSize) + 15;
+}
+
+// Exit codes of the checking child (below 128, and unlike a sanitizer's or libFuzzer's).
+constexpr int kChildDone = 0, kChildThrew = 42;
+
+// Reads the child's message until it closes the pipe (it exits) or @a deadline passes.
+// Returns false on the deadline.
+bool
+readUntilClosed(int fd, std::string& message, std::chrono::steady_clock::time_point deadline)
+{
+    char chunk[512];
+    for (;;) {
+        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+            deadline - std::chrono::steady_clock::now()).count();
+        if (left <= 0) return false;
+        struct pollfd p = {fd, POLLIN, 0};
+        const int ready = ::poll(&p, 1, int(std::min<long long>(left, 1 << 30)));
+        if (ready < 0 && errno == EINTR) continue;
+        if (ready == 0) return false;
+        if (ready < 0) return true;   // cannot wait on it: waitpid below still tells the outcome
+        const ssize_t n = ::read(fd, chunk, sizeof(chunk));
+        if (n > 0) message.append(chunk, size_t(n));
+        else if (n < 0 && errno == EINTR) continue;
+        else return true;
+    }
+}
+
+} // namespace
+
+bool
+runGuarded(const std::function<void()>& work, size_t inputBytes, unsigned wallSeconds)
+{
+    if (wallSeconds == 0) wallSeconds = childWallSeconds(inputBytes);
     int fds[2];
-    if (::pipe(fds) != 0) return Guard::Unavailable;
+    if (::pipe(fds) != 0) return false;
     const pid_t pid = ::fork();
     if (pid < 0) {
         ::close(fds[0]);
         ::close(fds[1]);
-        return Guard::Unavailable;
+        return false;
     }
     if (pid == 0) {
         // The child has only this thread: TBB must not wait for the parent's workers (Tree's
@@ -213,23 +247,18 @@ parseInChild(const std::string& bytes)
             ::dup2(null, STDERR_FILENO);
             ::close(null);
         }
-        limitChildAddressSpace(bytes.size());
-        limitChildCpu(bytes.size());
+        limitChildAddressSpace(inputBytes);
+        limitChildCpu(inputBytes);
         // The application's crash handlers (or a fuzzer's) are not for this child: a crash must
         // reach the parent as the signal it is.
         for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGXCPU}) {
             std::signal(sig, SIG_DFL);
         }
-        int code = kChildParsed;
+        int code = kChildDone;
         std::string message;
         try {
             tbb::task_arena serial(1);
-            serial.execute([&] {
-                VdbFile file = parseUnguarded(bytes);
-                for (const auto& g : file.grids) g->apply<openvdb::GridTypes>(TouchLeaves());
-                // Freeing everything lets glibc catch heap corruption here, not in the parent.
-                file.grids.clear();
-            });
+            serial.execute(work);
         } catch (const std::exception& e) {
             code = kChildThrew;
             message = errorMessage(e);
@@ -247,28 +276,28 @@ parseInChild(const std::string& bytes)
     ::close(fds[1]);
     // Read the message before waiting so a long one cannot block the child.
     std::string message;
-    char chunk[512];
-    for (;;) {
-        const ssize_t n = ::read(fds[0], chunk, sizeof(chunk));
-        if (n > 0) message.append(chunk, size_t(n));
-        else if (n < 0 && errno == EINTR) continue;
-        else break;
-    }
+    const bool finished = readUntilClosed(fds[0], message,
+        std::chrono::steady_clock::now() + std::chrono::seconds(wallSeconds));
     ::close(fds[0]);
+    if (!finished) ::kill(pid, SIGKILL);
     int status = 0;
     pid_t r = -1;
     do {
         r = ::waitpid(pid, &status, 0);
     } while (r < 0 && errno == EINTR);
     // ECHILD: the application reaps children itself (SIGCHLD ignored); parse unguarded.
-    if (r != pid) return Guard::Unavailable;
-    if (WIFEXITED(status) && WEXITSTATUS(status) == kChildParsed) return Guard::Parsed;
+    if (r != pid) return false;
+    if (!finished) {
+        OPENVDB_THROW(openvdb::IoError, "corrupt VDB data (the OpenVDB reader did not finish "
+            "within " << wallSeconds << " s; it may have deadlocked)");
+    }
+    if (WIFEXITED(status) && WEXITSTATUS(status) == kChildDone) return true;
     if (WIFEXITED(status) && WEXITSTATUS(status) == kChildThrew) {
         OPENVDB_THROW(openvdb::IoError, message);
     }
     if (WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU) {
         OPENVDB_THROW(openvdb::IoError, "corrupt VDB data (the OpenVDB reader did not finish "
-            "within " << childCpuSeconds(bytes.size()) << " s of CPU time)");
+            "within " << childCpuSeconds(inputBytes) << " s of CPU time)");
     }
     if (WIFSIGNALED(status)) {
         const char* name = ::strsignal(WTERMSIG(status));
@@ -279,8 +308,6 @@ parseInChild(const std::string& bytes)
     OPENVDB_THROW(openvdb::IoError, "corrupt VDB data (the OpenVDB reader failed on it: exit "
         "status " << WEXITSTATUS(status) << ")");
 }
-
-} // namespace
 
 VdbFile
 parseVdb(const std::string& bytes)
@@ -303,7 +330,12 @@ parseVdb(const std::string& bytes)
             << ")");
     }
     openvdb::initialize();   // before the fork: the child then inherits the registries
-    parseInChild(bytes);
+    runGuarded([&] {
+        VdbFile file = parseUnguarded(bytes);
+        for (const auto& g : file.grids) g->apply<openvdb::GridTypes>(TouchLeaves());
+        // Freeing everything lets glibc catch heap corruption here, not in the parent.
+        file.grids.clear();
+    }, bytes.size());
     return parseUnguarded(bytes);
 }
 
