@@ -1,80 +1,85 @@
-// libFuzzer target: untrusted `.vdb` bytes through everything the tool does with an input before
-// the heavy solve: parse (GridIO, with its crash guard), the scene contract, the Scene and the
-// Cloud, a tiny solve and render of small inputs, and the pass-through write.
+// libFuzzer target: untrusted `.vdb` bytes through everything the tool does with an input: parse
+// (GridIO, with its crash guard), then Load.h (roles, Scene, Cloud, a tiny solve, render and
+// write of small inputs).
 //
-// Build by hand (clang 14, libFuzzer from Debian's libclang-rt-14-dev), e.g.:
-//   SAN=fuzzer-no-link,address,signed-integer-overflow,float-cast-overflow,bounds,shift
-//   clang++ -std=c++17 -O1 -g -fsanitize=$SAN -I. -Ibuild/generated -isystem /usr/include/Imath \
-//       -c fuzz/fuzz_load.cc vdbrad/*.cc     (all but ImageIO, Mesh, MonteCarloSolver and
-//       Voxelizer; full -fsanitize=undefined trips on oneTBB's concurrent_hash_map)
-//   clang++ -fsanitize=fuzzer,address,... *.o -lopenvdb -ltbb -lImath-3_1 -o fuzz_load
-//   VDBRAD=build/vdbrad fuzz/make_corpus.sh seeds/
-//   ./fuzz_load -jobs=2 -workers=2 -max_len=4096 -timeout=30 corpus/ seeds/
+// Run by scripts/fuzz.sh; by hand: VDBRAD_FUZZ_SEEDS=DIR build-fuzz/fuzz/fuzz_load DIR.
+// Seeds (Seeds.h): every canonical scene and cloud at 4 and 8 voxels, an explicit surface, a
+// solved scene and cloud, and a level set, i.e. every kind of file the tool reads.
 // GridIO parses in a forked child (GridIO.h): crashes of OpenVDB's reader are reported as
-// IoErrors, so they do not stop the fuzzer (libFuzzer may still leave a crash-* file for a child
-// that an ASan report ended); what stops it is a crash in vdbrad's own code.
-// Expected failures are the library's exceptions (openvdb::Exception, std::bad_alloc for an
-// absurd but valid size); anything else escaping, a crash or a sanitizer report is a finding.
+// IoErrors, so they do not stop the fuzzer; what stops it is a crash in vdbrad's own code. The
+// fork makes each execution slow (tens per second), so fuzz_scene.cc covers the code after the
+// parse at full speed.
+#include "Load.h"
+#include "Seeds.h"
+#include "grids/CanonicalGrids.h"
 #include "vdbrad/CloudTransfer.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
+#include <openvdb/tools/LevelSetSphere.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace {
-
-// Inputs small enough to solve and render on every execution; larger ones stop after building.
-constexpr size_t kMaxSolvedVoxels = 4096;
 
 void
 load(const std::string& bytes)
 {
+    vdbrad::fuzz::useFile(vdbrad::parseVdb(bytes));
+}
+
+std::vector<std::string>
+seeds()
+{
     using namespace vdbrad;
-    const VdbFile file = parseVdb(bytes);
-    // `vdbrad info`: the description of every grid, whatever its type.
-    for (const auto& g : file.grids) {
-        (void)g->evalActiveVoxelBoundingBox();
-        (void)g->activeVoxelCount();
-        (void)g->transform().voxelSize();
-    }
-    const GridRoles roles = identifyRoles(file.grids);
-    if (roles.surface) {
-        try {
-            const Scene scene = buildScene(file.grids, SceneOptions());
-            // `vdbrad surface`: the scene's grids plus the input's, serialised.
-            (void)serializeVdb(withGrids(file, sceneToGrids(scene)));
-            if (scene.size() <= kMaxSolvedVoxels) {
-                RadiosityOptions o;
-                o.directions = 3;
-                o.maxIterations = 1;
-                RadiositySolver solver(scene, o);
-                solver.solve();
-                RenderOptions r;
-                r.width = r.height = 4;
-                (void)renderImage(withGrids(file, {solver.grid()}).grids, r);
-            }
-        } catch (const openvdb::Exception&) {
+    std::vector<std::string> out;
+    auto add = [&](const openvdb::GridPtrVec& grids) {
+        VdbFile f;
+        f.grids = grids;
+        out.push_back(serializeVdb(f));
+    };
+    for (const grids::Builder& b : grids::builders()) {
+        for (int res : {4, 8}) {
+            grids::BuildParams p;
+            p.res = res;
+            add(b.build(p));
         }
     }
-    if (roles.density) {
-        try {
-            const Cloud cloud = buildCloud(file.grids);
-            if (cloud.size() <= kMaxSolvedVoxels) {
-                CloudTransferOptions o;
-                o.directions = 3;
-                o.maxIterations = 1;
-                CloudTransfer transfer(cloud, o);
-                transfer.solve();
-                (void)serializeVdb(withGrids(file, {transfer.grid()}));
-            }
-        } catch (const openvdb::Exception&) {
-        }
-    }
+    grids::BuildParams p;
+    p.res = 8;
+    const Scene cornell = buildScene(grids::makeCornell(p), SceneOptions());
+    add(sceneToGrids(cornell));
+    RadiosityOptions o;
+    o.directions = 3;
+    o.maxIterations = 1;
+    RadiositySolver solver(cornell, o);
+    solver.solve();
+    add({solver.grid()});
+    p.res = 4;
+    const Cloud slab = buildCloud(grids::makeSlab(p));
+    CloudTransferOptions c;
+    c.directions = 3;
+    c.maxIterations = 1;
+    CloudTransfer transfer(slab, c);
+    transfer.solve();
+    add({transfer.grid()});
+    auto sphere = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(1.f, {0, 0, 0}, 0.25f);
+    sphere->setName("surface");
+    add({sphere});
+    return out;
 }
 
 } // namespace
+
+extern "C" int
+LLVMFuzzerInitialize(int*, char***)
+{
+    vdbrad::fuzz::writeSeeds(seeds());
+    return 0;
+}
 
 extern "C" int
 LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
