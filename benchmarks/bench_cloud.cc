@@ -8,6 +8,8 @@
 //                                Eddington albedos, for scripts/plot-cloud.py; - for none)
 //                                [accelerate=none|anderson|both] (both: each slab is solved
 //                                plain, then with Anderson acceleration, in this process)
+//                                [taus=0.5,1,2,5,10,20,50] (total optical depths, comma-separated)
+//                                [iterations=5000] (sweeps cap)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -15,6 +17,7 @@
 
 #include <openvdb/openvdb.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -34,6 +37,14 @@ main(int argc, char** argv)
     const int order = argc > 6 ? std::atoi(argv[6]) : 8;
     std::FILE* csv = argc > 7 && std::string(argv[7]) != "-" ? std::fopen(argv[7], "a") : nullptr;
     const std::string accelerate = argc > 8 ? argv[8] : "none";
+    const std::string tauList = argc > 9 ? argv[9] : "0.5,1,2,5,10,20,50";
+    std::vector<double> taus;
+    for (size_t at = 0; at < tauList.size();) {
+        const size_t comma = std::min(tauList.find(',', at), tauList.size());
+        taus.push_back(std::atof(tauList.substr(at, comma - at).c_str()));
+        at = comma + 1;
+    }
+    const int maxIterations = argc > 10 ? std::atoi(argv[10]) : 5000;
     std::vector<vdbrad::Acceleration> modes;
     if (accelerate != "anderson") modes.push_back(vdbrad::Acceleration::None);
     if (accelerate != "none") modes.push_back(vdbrad::Acceleration::Anderson);
@@ -43,10 +54,10 @@ main(int argc, char** argv)
     }
     std::printf("periodic slab %d x %d x %d, HG g %.3f (order %d), omega0 %.3f, %d directions "
         "asked\n", width, layers, width, g, order, omega0, dirs);
-    std::printf("%6s %9s %10s %10s %8s %10s %10s %10s %6s %8s %12s %12s\n", "tau", "accel",
+    std::printf("%8s %9s %10s %10s %8s %10s %10s %10s %6s %8s %12s %12s\n", "tau", "accel",
         "albedo", "exact",
         "error", "transmit", "absorb", "balance", "iters", "seconds", "ns/vox.dir", "to 1%: it/s");
-    for (double tau : {0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0}) {
+    for (double tau : taus) {
         const double h = 1.0 / layers;
         openvdb::FloatGrid::Ptr density = openvdb::FloatGrid::create(0.f);
         density->setName("density");
@@ -61,7 +72,7 @@ main(int argc, char** argv)
         o.periodic = true;
         o.directions = dirs;
         o.tolerance = 1e-6;
-        o.maxIterations = 5000;
+        o.maxIterations = maxIterations;
         o.phase = vdbrad::PhaseFunction::henyeyGreenstein(g);
         o.phaseOrder = order;
         vdbrad::test::SlabProblem problem;
@@ -101,7 +112,7 @@ main(int argc, char** argv)
                 vdbrad::test::deltaEddingtonAlbedo(tau, omega0, g, 1.0),
                 transfer.iterationCount(), s, within);
         }
-        std::printf("%6.1f %9s %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.2e %6d %8.2f %12.1f %12s\n",
+        std::printf("%8.1f %9s %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.2e %6d %8.2f %12.1f %12s\n",
             tau, vdbrad::toString(mode), b.albedo, exact, 100.0 * (b.albedo - exact) / exact,
             b.transmittance, b.absorptance, b.balance(), transfer.iterationCount(), s,
             1e9 * s / (double(cloud.size()) * double(transfer.directions().size())

@@ -17,6 +17,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 namespace vdbrad {
 
@@ -79,6 +80,18 @@ crossedSide(const Vec3d& p, const Vec3d& t, const Vec3d& lo, const Vec3d& hi, in
     return face / 2 == up ? -1 : face;
 }
 
+// A naive line of direction sigma advances one voxel per step along its major axis: the step is
+// |sigma| / max_k |sigma_k| voxels long (float: the sweeps' and the self-scattering factors'
+// optical depths must be the same numbers).
+inline float
+stepLength(const Coord& sigma)
+{
+    const int major = std::abs(sigma.x()) >= std::abs(sigma.y())
+        ? (std::abs(sigma.x()) >= std::abs(sigma.z()) ? 0 : 2)
+        : (std::abs(sigma.y()) >= std::abs(sigma.z()) ? 1 : 2);
+    return float(sigma.asVec3d().length() / std::abs(sigma[major]));
+}
+
 } // namespace
 
 struct CloudTransfer::Impl
@@ -93,6 +106,9 @@ struct CloudTransfer::Impl
     double incident = 0.0, directOut = 0.0;   // at the internal irradiance (see outputScale)
     double outputScale = 1.0;        // F0 / the internal irradiance: a power of two
     std::vector<float> diffuseJ;     // diffuse mean radiance of the last sweep
+    // Mean escape factor M_v per voxel: Y_00^2 sum_{directions, senses} Omega f(tau), from the
+    // sweeps' own float factors; 1 - omega0 (1 - M_v) is what iterate() divides I_00 by.
+    std::vector<double> escape;
     // Anisotropic scattering: M = (K + 1)^2 radiance moments per voxel (M = 1: isotropic).
     int M = 1;
     std::vector<double> chi;         // delta-M scaled Legendre coefficients, l = 0..K
@@ -424,6 +440,38 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
         impl.mixer.reset(new AndersonMixer(n * size_t(impl.M) + impl.leftFace.size(),
             options.andersonDepth));
     }
+    // Escape factors for the self-scattering elimination (iterate()): per direction, the float
+    // step and the weight Omega (Y_00^2 of both senses) the sweeps use; voxels of equal kappa
+    // (a homogeneous cloud) share one sum.
+    {
+        std::vector<float> step(dirs);
+        std::vector<double> weight(dirs);
+        const size_t M = size_t(impl.M);
+        for (size_t d = 0; d < dirs; ++d) {
+            step[d] = stepLength(mDirections.direction(d));
+            const double y0 = impl.yAccumulate[2 * d * M], y1 = impl.yAccumulate[(2 * d + 1) * M];
+            weight[d] = double(float(kPi * mDirections.factor(d))) * (y0 * y0 + y1 * y1);
+        }
+        impl.escape.resize(n);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
+            [&](const tbb::blocked_range<size_t>& r) {
+                const ScopedFlushDenormals flush;   // as in the sweeps
+                float kappa = -1.f;
+                double sum = 0.0;
+                for (size_t i = r.begin(); i != r.end(); ++i) {
+                    if (impl.kappa[i] != kappa) {
+                        kappa = impl.kappa[i];
+                        sum = 0.0;
+                        for (size_t d = 0; d < dirs; ++d) {
+                            float absorb, mean;
+                            stepFactors(kappa * step[d], absorb, mean);
+                            sum += weight[d] * double(mean);
+                        }
+                    }
+                    impl.escape[i] = sum;
+                }
+            });
+    }
     mSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -448,6 +496,9 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
     // S(s) = sum_lm c_lm Y_lm(s), plus the beam's first scattering omega0 J_beam T(s).
     const size_t M = size_t(impl.M);
     std::vector<float> source(n * M), beamSource(n);
+    // Anisotropic: (alpha - 1) omega0 I_00 per voxel, the part of the isotropic source that
+    // alpha adds (see the self-scattering elimination below).
+    std::vector<double> isoExcess(M > 1 ? n : 0);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
         std::vector<double> c(M);
         for (size_t i = r.begin(); i != r.end(); ++i) {
@@ -467,6 +518,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
             const double target = c[0] * impl.quadratureMean[0];
             const double alpha = total > 0.0 ? target / total : 1.0;
             for (size_t lm = 0; lm < M; ++lm) source[i * M + lm] = float(alpha * c[lm]);
+            if (M > 1) isoExcess[i] = total > 0.0 ? (target - total) / total * c[0] : 0.0;
             beamSource[i] = impl.omega[i] * impl.beamJ[i];
         }
     });
@@ -497,12 +549,9 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                     if (cancelled.load(std::memory_order_relaxed)) return;
                     const Coord& sigma = mDirections.direction(d);
                     const Vec3d unit = mDirections.unit(d);
-                    const int major = std::abs(sigma.x()) >= std::abs(sigma.y())
-                        ? (std::abs(sigma.x()) >= std::abs(sigma.z()) ? 0 : 2)
-                        : (std::abs(sigma.y()) >= std::abs(sigma.z()) ? 1 : 2);
                     // A naive line's step, in voxels, and its tube's etendue (cross-section
                     // 1 / step voxel faces times the solid angle of one orientation).
-                    const float step = float(sigma.asVec3d().length() / std::abs(sigma[major]));
+                    const float step = stepLength(sigma);
                     const float omega = float(kPi * mDirections.factor(d));
                     const double etendue = double(omega) / double(step);
                     const size_t slice = impl.faceIndex(d, 0, 0, 0);
@@ -539,15 +588,29 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                 float absorb, mean;
                                 stepFactors(pattern.kappa[x] * step, absorb, mean);
                                 const size_t sense = forward ? 0 : 1;
-                                float s = 0.f;
+                                const float* y = yAcc[sense];
+                                // The source: its isotropic part s0, its higher moments' part
+                                // r and the beam's first scattering b.
+                                float s0 = 0.f, r = 0.f, b = 0.f;
                                 if (sources) {
                                     const float* c = &S[size_t(x) * M];
-                                    for (size_t lm = 0; lm < M; ++lm) s += c[lm] * yAcc[sense][lm];
-                                    s += B[x] * beamT[sense];
+                                    s0 = c[0] * y[0];
+                                    for (size_t lm = 1; lm < M; ++lm) r += c[lm] * y[lm];
+                                    b = B[x] * beamT[sense];
                                 }
-                                const float lbar = omega * (s + (ray.radiance - s) * mean);
+                                const float s = s0 + r + b;
+                                // Mean over the step: s + (L - s) f. I_00 gathers only
+                                // b + (L - b - r) f; iterate() adds the rest, s0 (1 - f) + r,
+                                // summed over the directions in closed form (the self-
+                                // scattering elimination), so that an opaque voxel's I_00 is
+                                // not a small difference of floats.
+                                const float rest = omega * (b + (ray.radiance - b - r) * mean);
                                 float* acc = &G[size_t(x) * M];
-                                for (size_t lm = 0; lm < M; ++lm) acc[lm] += lbar * yAcc[sense][lm];
+                                acc[0] += rest * y[0];
+                                if (M > 1) {
+                                    const float lbar = omega * (s + (ray.radiance - s) * mean);
+                                    for (size_t lm = 1; lm < M; ++lm) acc[lm] += lbar * y[lm];
+                                }
                                 ray.radiance += (s - ray.radiance) * absorb;
                             },
                             [&](const std::vector<Ray>& fronts, bool forward) {
@@ -625,6 +688,31 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
         x = impl.moments;
         x.insert(x.end(), impl.leftFace.begin(), impl.leftFace.end());
     }
+    // Self-scattering elimination. Of what a voxel scatters isotropically, the fraction
+    // 1 - M_v is extinguished again in the voxel itself: the sweep maps I_00 to
+    // swept = rest + alpha c_v I_00 + (1 - alpha) omega0 I_00 (the second term s0 (1 - f), the
+    // third the quadrature of r: alpha makes the higher moments integrate to
+    // (1 - alpha) times the isotropic source), with c_v = omega0 (1 - M_v). In an opaque
+    // conservative voxel that local mode decays like c_v ~ 1 - 1 / tau per sweep. Solving the
+    // local term exactly,
+    //     I_00' = (swept - c_v I_00) / (1 - c_v) = (rest - (alpha - 1) omega0 M_v I_00) / (1 - c_v),
+    // has the same fixed point (I_00' = I_00 iff I_00 = swept) and removes that mode; what is
+    // left is voxel-to-voxel diffusion, for Anderson. The beam's first scattering stays in rest
+    // (a constant: fixed point unchanged), and so does the light a periodic box carries over.
+    // 1 - c_v = (1 - omega0) + omega0 M_v, formed without cancellation in double: at the fixed
+    // point a conservative voxel's I_00 M_v is then exactly the light it gathers, so the energy
+    // balance closes however opaque it is. It is > 0 for any finite optical depth; the clamp
+    // only keeps voxels whose float f underflowed (tau past ~1e37 per step: nothing gets in or
+    // out of them) at J = 0 instead of 0 / 0. Higher moments need no elimination: a sweep maps
+    // I_lm to about omega0 chi_l' (1 - M_v) I_lm, and |chi_l'| < 1 for l >= 1 does not tend to
+    // 1 with the optical depth (delta-M keeps a forward peak's chi_l' <= K / (K + 1)), so their
+    // local modes decay at a rate independent of tau.
+    for (size_t i = 0; i < n; ++i) {
+        const double w = impl.omega[i], m = impl.escape[i];
+        const double free = std::max((1.0 - w) + w * m, double(std::numeric_limits<float>::min()));
+        const double excess = M > 1 ? isoExcess[i] * m : 0.0;
+        sum[i * M] = (sum[i * M] - excess) / free;
+    }
     for (size_t e = 0; e < n * M; ++e) impl.moments[e] = float(sum[e]);
     double maxChange = 0.0, maxJ = 0.0, absorbed = 0.0;
     const double y00 = 1.0 / std::sqrt(4.0 * kPi);
@@ -683,6 +771,7 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
     const size_t M = size_t(order + 1) * size_t(order + 1);
     size_t perVoxel = 4 + 4 + 4 + 8 + 4;            // kappa, omega, beam J, deposit, diffuse J
+    perVoxel += 8 + (M > 1 ? 8 : 0);                // escape factor, alpha's excess of I_00
     perVoxel += 4 * (4 + 4 + 12);                   // per pattern: order, kappa, sweep coords
     perVoxel += 4 * M + 4 * M + 4;                  // moments, their source, the beam's source
     perVoxel += size_t(Impl::kGroups) * 4 * M;      // gathered moments per group

@@ -19,6 +19,13 @@
 //     S_v = omega0_v (J_v + D_v / (4 pi sigma_t,v))     (per unit volume: extinguished power
 //                                                         times omega0, re-emitted over 4 pi)
 //
+// Self-scattering elimination: of what a voxel scatters, the fraction 1 - M_v (M_v its mean
+// escape factor, the direction-weighted mean of f over the steps the sweeps take through it) is
+// extinguished again in the voxel itself, so plain source iteration's local mode decays like
+// omega0 (1 - M_v) per sweep: ~1 - 1 / tau in an opaque conservative voxel. Each sweep solves that
+// local term exactly, J' = (J_swept - c_v J) / (1 - c_v) with c_v = omega0 (1 - M_v): the same
+// fixed point, no slow local mode (only voxel-to-voxel diffusion is left, for Anderson).
+//
 // Energy is conserved by construction: in each voxel and direction, what a tube loses plus what
 // the voxel emits into it is what the voxel extinguishes, and the solid angles add up to 4 pi
 // exactly; so at convergence reflected + transmitted + absorbed = incident (a test holds this to
