@@ -17,6 +17,29 @@ namespace fuzz {
 // Inputs small enough to solve and render on every execution; larger ones stop after building.
 constexpr size_t kMaxSolvedVoxels = 4096;
 
+// One sweep over 3 direction pairs: every stage of a solve, at the least cost.
+inline openvdb::GridBase::Ptr
+tinySolve(const Scene& scene)
+{
+    RadiosityOptions o;
+    o.directions = 3;
+    o.maxIterations = 1;
+    RadiositySolver solver(scene, o);
+    solver.solve();
+    return solver.grid();
+}
+
+inline openvdb::GridBase::Ptr
+tinySolve(const Cloud& cloud)
+{
+    CloudTransferOptions o;
+    o.directions = 3;
+    o.maxIterations = 1;
+    CloudTransfer transfer(cloud, o);
+    transfer.solve();
+    return transfer.grid();
+}
+
 inline void
 useFile(const VdbFile& file)
 {
@@ -33,14 +56,9 @@ useFile(const VdbFile& file)
             // `vdbrad surface`: the scene's grids plus the input's, serialised.
             (void)serializeVdb(withGrids(file, sceneToGrids(scene)));
             if (scene.size() <= kMaxSolvedVoxels) {
-                RadiosityOptions o;
-                o.directions = 3;
-                o.maxIterations = 1;
-                RadiositySolver solver(scene, o);
-                solver.solve();
                 RenderOptions r;
                 r.width = r.height = 4;
-                (void)renderImage(withGrids(file, {solver.grid()}).grids, r);
+                (void)renderImage(withGrids(file, {tinySolve(scene)}).grids, r);
             }
         } catch (const openvdb::Exception&) {
         }
@@ -49,12 +67,7 @@ useFile(const VdbFile& file)
         try {
             const Cloud cloud = buildCloud(file.grids);
             if (cloud.size() <= kMaxSolvedVoxels) {
-                CloudTransferOptions o;
-                o.directions = 3;
-                o.maxIterations = 1;
-                CloudTransfer transfer(cloud, o);
-                transfer.solve();
-                (void)serializeVdb(withGrids(file, {transfer.grid()}));
+                (void)serializeVdb(withGrids(file, {tinySolve(cloud)}));
             }
         } catch (const openvdb::Exception&) {
         }

@@ -12,8 +12,6 @@
 #include "Load.h"
 #include "Seeds.h"
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <openvdb/tools/LevelSetSphere.h>
@@ -52,20 +50,9 @@ seeds()
     p.res = 8;
     const Scene cornell = buildScene(grids::makeCornell(p), SceneOptions());
     add(sceneToGrids(cornell));
-    RadiosityOptions o;
-    o.directions = 3;
-    o.maxIterations = 1;
-    RadiositySolver solver(cornell, o);
-    solver.solve();
-    add({solver.grid()});
+    add({fuzz::tinySolve(cornell)});
     p.res = 4;
-    const Cloud slab = buildCloud(grids::makeSlab(p));
-    CloudTransferOptions c;
-    c.directions = 3;
-    c.maxIterations = 1;
-    CloudTransfer transfer(slab, c);
-    transfer.solve();
-    add({transfer.grid()});
+    add({fuzz::tinySolve(buildCloud(grids::makeSlab(p)))});
     auto sphere = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(1.f, {0, 0, 0}, 0.25f);
     sphere->setName("surface");
     add({sphere});
