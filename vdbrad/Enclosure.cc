@@ -257,12 +257,15 @@ findRegions(const VoxelIndex& voxels, const std::vector<openvdb::Vec3f>& normals
 
     // Neighbour offsets with the connectivity of the lines; "forward" ones (first nonzero
     // coordinate positive) visit each neighbouring pair once.
+    auto isForward = [](const openvdb::Coord& d) {
+        return d.x() > 0 || (d.x() == 0 && (d.y() > 0 || (d.y() == 0 && d.z() > 0)));
+    };
     std::vector<openvdb::Coord> offsets, forward;
     for (int i = -1; i <= 1; ++i) for (int j = -1; j <= 1; ++j) for (int k = -1; k <= 1; ++k) {
         const int m = std::abs(i) + std::abs(j) + std::abs(k);
         if (m == 0 || (lines == LineType::Standard && m > 1)) continue;
         offsets.emplace_back(i, j, k);
-        if (i > 0 || (i == 0 && (j > 0 || (j == 0 && k > 0)))) forward.emplace_back(i, j, k);
+        if (isForward(offsets.back())) forward.push_back(offsets.back());
     }
 
     // Empty blocks joined to their empty neighbours.
@@ -297,17 +300,17 @@ findRegions(const VoxelIndex& voxels, const std::vector<openvdb::Vec3f>& normals
         const openvdb::Coord block = voxels.leafOrigin(n) >> 3;
         for (size_t s = 0; s < offsets.size(); ++s) {
             const openvdb::Coord& d = offsets[s];
-            const uint32_t e = parent[blockOf(block + d)];
+            const uint64_t nb = blockOf(block + d);
+            const uint32_t e = parent[nb];
             if (!(e & kWall)) {
                 for (size_t j = 0; j < parts[n].size(); ++j) {
                     if ((parts[n][j] & toward[s]).any()) {
-                        unite(uint32_t(firstPart[n] + j), uint32_t(blockOf(block + d)));
+                        unite(uint32_t(firstPart[n] + j), uint32_t(nb));
                     }
                 }
                 continue;
             }
-            // A pair of leaves is visited from the one it lies forward of.
-            if (!(d.x() < 0 || (d.x() == 0 && (d.y() < 0 || (d.y() == 0 && d.z() < 0))))) continue;
+            if (!isForward(-d)) continue;   // a pair of leaves is visited from the forward one
             const size_t m = e & ~kWall;
             const Mask& across = toward[offsets.size() - 1 - s];
             for (size_t j = 0; j < parts[n].size(); ++j) {
