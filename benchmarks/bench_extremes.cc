@@ -8,8 +8,16 @@
 //     voxels, seconds per sweep, error against the exact answer, peak memory.
 //
 //   build/benchmarks/bench_extremes [big-res=1300] [big-directions=50]   (big-res 0: skip part 3)
+//
+// The closed-cavity analysis alone (Enclosure's findRegions, the setup step that dominated
+// part 3), the block fill against the former dense fill (tests/DenseRegions.h) in this process,
+// on furnace boxes at each RES given, both line types; a negative RES times the block fill only:
+//
+//   build/benchmarks/bench_extremes enclosure 256 512 -1300
 #include "grids/CanonicalGrids.h"
+#include "tests/DenseRegions.h"
 #include "vdbrad/CloudTransfer.h"
+#include "vdbrad/Enclosure.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
@@ -212,12 +220,67 @@ bigScene(int res, int directions)
         error, mean, double(ru.ru_maxrss) / (1024.0 * 1024.0));
 }
 
+// findRegions on furnace boxes: seconds (best of 3 for the block fill, one run of the dense
+// fill), what each holds while it runs, and whether both give the same regions.
+void
+enclosureTimes(const std::vector<int>& resolutions)
+{
+    std::printf("enclosure: findRegions on furnace boxes, block fill vs dense fill\n");
+    std::printf("%6s %8s %11s %9s %-8s %9s %9s %8s %10s %10s %5s\n", "res", "voxels", "box cells",
+        "blocks", "lines", "blocks s", "dense s", "ratio", "blocks MiB", "dense MiB", "same");
+    for (const int signedRes : resolutions) {
+        const int res = std::abs(signedRes);
+        const vdbrad::Scene scene = furnace(res, 0.5f, 1.f, false);
+        const openvdb::Coord dim = scene.voxels().bbox().expandBy(2).dim();
+        const double cells = double(dim.x()) * double(dim.y()) * double(dim.z());
+        const uint64_t blocks = vdbrad::regionBlocks(scene.voxels());
+        // Dense: two bits per cell (walls and visited), a front cell per voxel.
+        const double denseBytes = cells / 4.0 + 8.0 * double(scene.size());
+        for (const vdbrad::LineType lines : {vdbrad::LineType::Naive, vdbrad::LineType::Standard}) {
+            double sparse = 1e300;
+            vdbrad::Regions regions;
+            for (int k = 0; k < 3; ++k) {
+                const auto t0 = Clock::now();
+                regions = vdbrad::findRegions(scene.voxels(), scene.normals(), lines,
+                    uint64_t(1) << 31);
+                sparse = std::min(sparse, since(t0));
+            }
+            char dense[16] = "-", ratio[16] = "-", same[8] = "-";
+            if (signedRes > 0) {
+                const auto t0 = Clock::now();
+                const vdbrad::Regions reference = vdbrad::test::denseRegions(scene.voxels(),
+                    scene.normals(), lines, uint64_t(1) << 40);
+                const double seconds = since(t0);
+                std::snprintf(dense, sizeof dense, "%.3f", seconds);
+                std::snprintf(ratio, sizeof ratio, "%.0fx", seconds / sparse);
+                const bool equal = reference.region == regions.region
+                    && reference.cavities == regions.cavities
+                    && reference.analysed == regions.analysed;
+                std::snprintf(same, sizeof same, "%s", equal ? "yes" : "NO");
+            }
+            std::printf(
+                "%6d %8zu %11.3g %9llu %-8s %9.3f %9s %8s %10.1f %10.1f %5s  (%u cavities)\n", res, scene.size(), cells, (unsigned long long)blocks,
+                lines == vdbrad::LineType::Naive ? "naive" : "standard", sparse, dense, ratio,
+                double(vdbrad::regionsBytes(scene.voxels())) / (1 << 20), denseBytes / (1 << 20),
+                same, regions.cavities);
+            std::fflush(stdout);
+        }
+    }
+}
+
 } // namespace
 
 int
 main(int argc, char** argv)
 {
     openvdb::initialize();
+    if (argc > 1 && std::string(argv[1]) == "enclosure") {
+        std::vector<int> resolutions;
+        for (int i = 2; i < argc; ++i) resolutions.push_back(std::atoi(argv[i]));
+        if (resolutions.empty()) resolutions = {256, 512};
+        enclosureTimes(resolutions);
+        return 0;
+    }
     const int bigRes = argc > 1 ? std::atoi(argv[1]) : 1300;
     const int bigDirections = argc > 2 ? std::atoi(argv[2]) : 50;
     albedoTable();

@@ -11,10 +11,17 @@
 //     cavity cannot see the sky, so the solver renormalises its weights over the directions that
 //     do meet a voxel. Voxels facing the outside keep their losses: those are the sky.
 //
-// Regions come from flood-filling the empty cells of the bounding box (grown by one cell) with the
-// connectivity light has on the lines (26 for naive, 6 for standard lines): the fill from the
-// border is the outside (region 0); every cavity it cannot reach gets its own number. A voxel
-// faces the region of the first empty cell met stepping from it along its normal.
+// Regions are the connected components of the empty cells (not surface voxels) with the
+// connectivity light has on the lines (26 for naive, 6 for standard lines): the component that
+// reaches infinity is the outside (region 0); every other one is a closed cavity, numbered in the
+// order the voxels (in index order) first face it. A voxel faces the region of the first empty
+// cell met stepping from it along its normal, at most 3 steps and within the bounding box grown
+// by one cell.
+//
+// The components are found on OpenVDB's 8^3 leaf grid, so the work and memory follow the surface,
+// not the volume: a block holding no surface voxel is one node, a leaf of the index is split into
+// its own components (bit masks of 512 cells), and a union-find joins nodes that touch across
+// block faces, edges and corners.
 #pragma once
 
 #include "vdbrad/LinePartition.h"
@@ -22,6 +29,7 @@
 
 #include <openvdb/openvdb.h>
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -36,10 +44,18 @@ struct Regions
 };
 
 /// @brief The region every voxel of @a voxels faces (see the file comment).
-/// @param maxCells  bounding boxes with more cells than this are not analysed (every voxel is then
-///                  region 0: no renormalisation, and only the line rules stop light at walls);
-///                  the fill needs one bit per cell
+/// @param maxBlocks  scenes spanning more 8^3 blocks than this (regionBlocks()) are not analysed
+///                   (every voxel is then region 0: no renormalisation, and only the line rules
+///                   stop light at walls); the fill needs 4 bytes per block (regionsBytes())
 Regions findRegions(const VoxelIndex& voxels, const std::vector<openvdb::Vec3f>& normals,
-    LineType lines, uint64_t maxCells = uint64_t(1) << 31);
+    LineType lines, uint64_t maxBlocks = uint64_t(1) << 26);
+
+/// @brief The 8^3 blocks findRegions() spans for @a voxels: those of the bounding box grown by one
+/// block on every side (0 for an empty set). What its @a maxBlocks caps.
+uint64_t regionBlocks(const VoxelIndex& voxels);
+
+/// @brief Bytes findRegions() holds while it runs on @a voxels, besides its result: 4 per block,
+/// 4 per voxel and ~150 per leaf (two components of a wall leaf; each further one costs 68).
+size_t regionsBytes(const VoxelIndex& voxels);
 
 } // namespace vdbrad
