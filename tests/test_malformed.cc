@@ -567,6 +567,17 @@ TEST_F(MalformedTest, HugeActiveTilesAreRefusedBeforeAllocating)
     for (const char* c : {"compareA", "compareB"}) {
         expectRefused(reader(c), "bad.vdb", "too many voxels: 68719476736");
     }
+    // A level set's active voxels are densified to find its boundary: refused before that (this
+    // one was found by fuzz/fuzz_scene.cc; it used to allocate without bound).
+    auto ls = openvdb::FloatGrid::create(0.3f);
+    ls->setName("surface");
+    ls->setGridClass(openvdb::GRID_LEVEL_SET);
+    ls->setTransform(xform(0.1));
+    ls->tree().fill(huge, -0.3f, true);
+    writeBytes("bad.vdb", bytesOf({ls}));
+    for (const char* c : {"surface", "solve"}) {
+        expectRefused(reader(c), "bad.vdb", "too many voxels: 68719476736");
+    }
 }
 
 TEST_F(MalformedTest, HugeRequestsOnTheCommandLineAreRefused)

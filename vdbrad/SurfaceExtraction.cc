@@ -2,6 +2,7 @@
 
 #include "vdbrad/Attribute.h"
 #include "vdbrad/Errors.h"
+#include "vdbrad/VoxelIndex.h"
 
 #include <openvdb/tools/Prune.h>
 #include <openvdb/tree/LeafManager.h>
@@ -39,6 +40,9 @@ extractSurfaceVoxels(const openvdb::FloatGrid& levelSet, int separation,
     }
     const std::vector<openvdb::Coord> offsets = neighbourOffsets(separation);
 
+    // Active tiles are densified below: a corrupt or hostile level set (a 4096^3 active tile is a
+    // few bytes on disk) must be refused before that allocates.
+    VoxelIndex::checkVoxelCount(levelSet.activeVoxelCount());
     // Start from the level set's active topology and switch off what is not on the boundary;
     // leaves are independent, so this is a plain parallel loop with no locking.
     auto mask = std::make_shared<openvdb::MaskTree>(levelSet.tree(), false, openvdb::TopologyCopy());
