@@ -170,6 +170,38 @@ TEST_F(CliTest, EachMalformedInputGivesOneErrorLineAndNoOutput)
         << missing.err;
 }
 
+// Two grids may share a name: every command must use the grid the contract picked (by type and
+// class), not the first of that name. Found by fuzz/fuzz_scene.cc: render looked the level set
+// up again by name and cast an Int32 grid called "surface" to a float level set, undefined
+// behaviour (the sanitized run of this suite reports it) that rendered this sphere black. The
+// decoy must change nothing: the same image, the same radiosity.
+TEST_F(CliTest, ANameSharedByTwoGridsUsesTheGridTheContractPicked)
+{
+    auto ls = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(0.5f, {0, 0, 0}, 0.1f);
+    ls->setName("surface");
+    auto e = openvdb::FloatGrid::create();   // every surface voxel emits: a lit picture
+    e->setName("emission");
+    e->setTransform(ls->transform().copy());
+    e->tree().fill(openvdb::CoordBBox(openvdb::Coord(-8), openvdb::Coord(8)), 1.f, true);
+    write(path("ls.vdb"), {ls, e});
+    const Result solved = sh("vdbrad solve ls.vdb solved.vdb --quiet --directions 3 "
+        "--iterations 1 && vdbrad render solved.vdb ref.exr --quiet --res 64x48");
+    ASSERT_EQ(solved.status, 0) << solved.err;
+    VdbFile file = readVdbFile(path("solved.vdb"));
+    auto decoy = openvdb::Int32Grid::create(7);
+    decoy->setName("surface");
+    decoy->setTransform(ls->transform().copy());
+    decoy->tree().setValueOn({0, 0, 0}, 1);
+    file.grids.insert(file.grids.begin(), decoy);
+    writeVdbFile(file, path("dup.vdb"));
+    const Result r = sh("vdbrad render dup.vdb dup.exr --quiet --res 64x48 && "
+        "vdbrad solve dup.vdb dup-solved.vdb --quiet --directions 3 --iterations 1 && "
+        "vdbrad compare dup-solved.vdb solved.vdb");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(slurp(path("dup.exr")), slurp(path("ref.exr")));
+    EXPECT_NE(r.out.find("mean_rel 0 max_rel 0"), std::string::npos) << r.out;
+}
+
 TEST_F(CliTest, OutputEqualToInputNeedsOverwrite)
 {
     write(path("scene.vdb"), {patch()});

@@ -318,11 +318,14 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
         mRadiosity = Attribute::sample(*radiosity, mScene.voxels(), names::kRadiosity,
             std::numeric_limits<float>::lowest());
         if (mScene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
-            const auto ls = findGrid(grids, mScene.surfaceName());
+            // The grid the scene was built from: identifyRoles picks it by type and class, and
+            // another grid of the file may carry the same name (found by fuzz_scene: looking it
+            // up by name cast an Int32 grid to a level set).
+            const auto ls = openvdb::gridConstPtrCast<openvdb::FloatGrid>(roles.surface);
+            if (!ls) OPENVDB_THROW(openvdb::TypeError, "the surface is not a float level set");
             // A shallow copy: the tree is shared; only the class changes, for grids whose
             // exporter dropped it (the contract accepts them when named).
-            mLevelSet = std::const_pointer_cast<openvdb::FloatGrid>(
-                static_cast<const openvdb::FloatGrid&>(*ls).copy());
+            mLevelSet = std::const_pointer_cast<openvdb::FloatGrid>(ls->copy());
             mLevelSet->setGridClass(openvdb::GRID_LEVEL_SET);
             try {
                 mLevelSetShared.reset(new LevelSetShared{LevelSetIntersector(*mLevelSet)});
