@@ -1,6 +1,8 @@
 // Issue 8's extremes, measured (tables in BENCHMARKS.md "Extremes"):
 //  1. the furnace box across albedos from 0 to 1 - 1e-6: sweeps to 1e-4 of E / (1 - rho) with
-//     plain in-place sweeps and with Anderson, and the error where each stops;
+//     plain in-place sweeps and with Anderson, and the error where each stops, in the precision
+//     Precision::Auto picks and, above 0.999, also forced to float; then the cost of the double
+//     state: seconds per sweep of the same solves in float and in double;
 //  2. denormals: the same surface and cloud problems with every value scaled down into float's
 //     denormal range (the solvers are linear, so only the magnitudes differ), time per sweep
 //     against the unscaled run in this process ("ratio" = scaled / unscaled);
@@ -67,19 +69,29 @@ albedoTable()
 {
     std::printf("1. furnace box res 16, 50 directions, E = 1: sweeps to 1e-4 relative "
                 "(error after the last sweep)\n");
-    std::printf("%-12s | %16s %10s | %16s %10s\n", "rho", "in-place sweeps", "error",
-        "Anderson sweeps", "error");
-    for (double rho : {0.0, 1e-6, 0.5, 0.99, 0.999, 1.0 - 1e-6}) {
+    std::printf("%-12s %-7s | %16s %10s | %16s %10s\n", "rho", "state", "in-place sweeps",
+        "error", "Anderson sweeps", "error");
+    struct Row { double rho; vdbrad::Precision precision; };
+    const Row rows[] = {{0.0, vdbrad::Precision::Auto}, {1e-6, vdbrad::Precision::Auto},
+        {0.5, vdbrad::Precision::Auto}, {0.99, vdbrad::Precision::Auto},
+        {0.999, vdbrad::Precision::Auto}, {0.9999, vdbrad::Precision::Float},
+        {0.9999, vdbrad::Precision::Auto}, {1.0 - 1e-6, vdbrad::Precision::Float},
+        {1.0 - 1e-6, vdbrad::Precision::Auto}};
+    for (const Row& row : rows) {
+        const double rho = row.rho;
         const vdbrad::Scene scene = furnace(16, float(rho), 1.f, false);
         const double exact = 1.0 / (1.0 - double(float(rho)));
         std::string cells[2][2];
+        bool wide = false;
         for (int accel = 0; accel < 2; ++accel) {
             vdbrad::RadiosityOptions o;
             o.directions = 50;
             o.tolerance = 0.0;
+            o.precision = row.precision;
             o.accelerate = accel ? vdbrad::Acceleration::Anderson : vdbrad::Acceleration::None;
             const int cap = accel ? 200 : 20000;
             vdbrad::RadiositySolver solver(scene, o);
+            wide = solver.doublePrecision();
             int reached = -1;
             double error = 0.0;
             while (solver.iterationCount() < cap) {
@@ -97,8 +109,49 @@ albedoTable()
             std::snprintf(buf, sizeof buf, "%.2g", error);
             cells[accel][1] = buf;
         }
-        std::printf("%-12.7g | %16s %10s | %16s %10s\n", rho, cells[0][0].c_str(),
-            cells[0][1].c_str(), cells[1][0].c_str(), cells[1][1].c_str());
+        std::printf("%-12.7g %-7s | %16s %10s | %16s %10s\n", rho, wide ? "double" : "float",
+            cells[0][0].c_str(), cells[0][1].c_str(), cells[1][0].c_str(), cells[1][1].c_str());
+        std::fflush(stdout);
+    }
+
+    // What the double state costs where it is not needed: the same solves forced to each.
+    std::printf("\n1b. seconds per sweep, float vs double state (sweeps 2-4; the first also "
+                "measures hit weights)\n");
+    std::printf("%-40s %10s %10s %8s %12s\n", "problem", "float", "double", "ratio",
+        "max |diff|");
+    const struct { const char* name; vdbrad::Scene scene; int directions; } problems[] = {
+        {"furnace box res 96, rho 0.9, grey", furnace(96, 0.9f, 1.f, false), 300},
+        {"Cornell box res 96, RGB", vdbrad::buildScene(vdbrad::grids::makeCornell([] {
+            vdbrad::grids::BuildParams p;
+            p.res = 96;
+            return p;
+        }())), 300},
+    };
+    for (const auto& problem : problems) {
+        double seconds[2];
+        std::vector<openvdb::Vec3f> result[2];
+        for (int wide = 0; wide < 2; ++wide) {
+            vdbrad::RadiosityOptions o;
+            o.directions = problem.directions;
+            o.tolerance = 0.0;
+            o.precision = wide ? vdbrad::Precision::Double : vdbrad::Precision::Float;
+            vdbrad::RadiositySolver solver(problem.scene, o);
+            solver.iterate();
+            const auto t0 = Clock::now();
+            for (int k = 0; k < 3; ++k) solver.iterate();
+            seconds[wide] = since(t0) / 3;
+            if (problem.scene.isRgb()) result[wide] = solver.rgb();
+            else for (float b : solver.grey()) result[wide].emplace_back(b);
+        }
+        double diff = 0.0, top = 0.0;
+        for (size_t i = 0; i < result[0].size(); ++i) {
+            for (int c = 0; c < 3; ++c) {
+                diff = std::max(diff, double(std::abs(result[0][i][c] - result[1][i][c])));
+                top = std::max(top, double(result[1][i][c]));
+            }
+        }
+        std::printf("%-40s %10.4f %10.4f %7.2fx %12.2g\n", problem.name, seconds[0], seconds[1],
+            seconds[1] / seconds[0], top > 0.0 ? diff / top : 0.0);
         std::fflush(stdout);
     }
 }

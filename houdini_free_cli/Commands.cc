@@ -808,6 +808,14 @@ runSolve(const Arguments& a)
     else if (lines == "standard") o.lines = LineType::Standard;
     else throw UsageError("--lines must be naive or standard, got '" + lines + "'");
     if (!(o.occlusionDepth > 0.f)) throw UsageError("--occlusion-depth must be > 0");
+    try {
+        o.precision = precisionFromString(a.getString("precision"));
+    } catch (const openvdb::ValueError& e) {
+        throw UsageError("--precision: " + errorMessage(e));
+    }
+    if (method == "montecarlo" && o.precision != Precision::Auto) {
+        throw UsageError("--precision does not apply to --method montecarlo");
+    }
     const Checkpointing checkpoints(a, in, out);
     memoryLimit(a);   // a bad --max-memory is a usage error before any work
     if (method == "montecarlo" && (!checkpoints.save.empty() || !checkpoints.resume.empty())) {
@@ -844,7 +852,7 @@ runSolve(const Arguments& a)
                   << solver.directions().size() << " directions (nearest to " << o.directions
                   << "), " << lines << " lines" << (scene.isRgb() ? ", RGB" : "")
                   << (o.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
-                  << "\n";
+                  << (solver.doublePrecision() ? ", double precision" : "") << "\n";
     }
     iterateWithProgress(solver, o.maxIterations, progress, checkpoints.saver(solver));
     if (!quiet && !solver.converged()) {
@@ -1179,6 +1187,10 @@ commands()
                     "digital lines: naive (26-connected) or standard (6-connected)"},
                 {"occlusion-depth", OptionType::Float, "1", "1.5",
                     "voxels: a receiver this far behind the wall voxel before it is hidden"},
+                {"precision", OptionType::String, "auto", "double",
+                    "auto, float or double: the solver's state (auto: double when an albedo "
+                    "exceeds 0.999, where float rounding, amplified by 1 / (1 - albedo), would "
+                    "show)"},
                 kAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
                 kMaxMemory, kOverwrite, kQuiet}),
             {"vdbrad make cornell - | vdbrad solve - cornell_lit.vdb --directions 1000",

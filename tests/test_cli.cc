@@ -378,13 +378,15 @@ TEST_F(CliTest, SolveAndSolveCloudGiveTheSameBitsOnOneTwoAndEightThreads)
 TEST_F(CliTest, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits)
 {
     // Each run is killed (SIGTERM) once its first checkpoint exists, then resumed to the same
-    // iteration count as an uninterrupted run: identical values, for surfaces (in-place and
-    // Anderson) and clouds (Anderson); the killed run leaves no output.
+    // iteration count as an uninterrupted run: identical values, for surfaces (in-place, and
+    // Anderson in float and double) and clouds (Anderson); the killed run leaves no output.
     ASSERT_EQ(sh("vdbrad make cornell c.vdb --res 40 --quiet && "
                  "vdbrad make slab k.vdb --res 24 --tau 20 --quiet").status, 0);
     const struct { const char* command; const char* options; const char* grid; } cases[] = {
         {"solve c.vdb", "--directions 200 --tolerance 0", "radiosity"},
         {"solve c.vdb", "--directions 200 --tolerance 0 --accelerate anderson", "radiosity"},
+        {"solve c.vdb", "--directions 200 --tolerance 0 --accelerate anderson --precision double",
+            "radiosity"},
         {"solve-cloud k.vdb", "--directions 300 --tolerance 0 --periodic --accelerate anderson",
             "mean_intensity"},
     };
@@ -447,6 +449,7 @@ TEST_F(CliTest, MemoryEstimateIsPrintedMatchesThePeakAndRefusesOverTheLimit)
     ASSERT_EQ(sh("vdbrad make cornell c.vdb --res 160 --quiet && "
                  "vdbrad make cumulus k.vdb --res 64 --quiet").status, 0);
     for (const char* run : {"solve c.vdb o.vdb --directions 20 --iterations 1",
+             "solve c.vdb o.vdb --directions 20 --iterations 1 --precision double",
              "solve-cloud k.vdb o.vdb --directions 100 --iterations 1 --g 0.8 --phase-order 4 "
              "--accelerate anderson"}) {
         const Result r = sh(std::string("/usr/bin/time -f 'peak %M' '" VDBRAD_CLI_PATH "' ")

@@ -20,7 +20,7 @@ namespace {
 constexpr size_t kBlock = size_t(1) << 14;
 
 // A column whose squared distance to the span of the newer ones is below this fraction of its
-// squared norm adds nothing the float history can resolve: it is left out of the combination.
+// squared norm adds nothing a float history can resolve: it is left out of the combination.
 constexpr double kDependent = 1e-8;
 
 } // namespace
@@ -40,7 +40,8 @@ toString(Acceleration a)
     return a == Acceleration::Anderson ? "anderson" : "none";
 }
 
-AndersonMixer::AndersonMixer(size_t size, int depth)
+template<typename T>
+AndersonMixerT<T>::AndersonMixerT(size_t size, int depth)
     : mSize(size)
     , mDepth(depth)
 {
@@ -52,14 +53,16 @@ AndersonMixer::AndersonMixer(size_t size, int depth)
     mGram.assign(size_t(depth) * size_t(depth), 0.0);
 }
 
+template<typename T>
 size_t
-AndersonMixer::bytes(size_t size, int depth)
+AndersonMixerT<T>::bytes(size_t size, int depth)
 {
-    return (2 * size_t(std::max(depth, 0)) + 2) * size * sizeof(float);
+    return (2 * size_t(std::max(depth, 0)) + 2) * size * sizeof(T);
 }
 
+template<typename T>
 void
-AndersonMixer::save(SolverState& state, const std::string& prefix) const
+AndersonMixerT<T>::save(SolverState& state, const std::string& prefix) const
 {
     const int64_t scalars[6] = {int64_t(mSize), mDepth, mUsed, mNewest, mHavePrevious ? 1 : 0,
         mScaleExponent};
@@ -71,8 +74,9 @@ AndersonMixer::save(SolverState& state, const std::string& prefix) const
     state.put(prefix + "gram", mGram);
 }
 
+template<typename T>
 void
-AndersonMixer::restore(const SolverState& state, const std::string& prefix)
+AndersonMixerT<T>::restore(const SolverState& state, const std::string& prefix)
 {
     const std::vector<int64_t> s = state.get<int64_t>(prefix + "scalars", 6);
     if (s[0] != int64_t(mSize) || s[1] != mDepth || s[2] < 0 || s[2] > mDepth || s[3] < -1
@@ -80,10 +84,10 @@ AndersonMixer::restore(const SolverState& state, const std::string& prefix)
         OPENVDB_THROW(openvdb::ValueError, "checkpoint's Anderson history does not match "
             "(size " << s[0] << ", depth " << s[1] << ")");
     }
-    mDeltaF = state.get<float>(prefix + "deltaF", mDeltaF.size());
-    mDeltaG = state.get<float>(prefix + "deltaG", mDeltaG.size());
-    mPreviousF = state.get<float>(prefix + "previousF", mSize);
-    mPreviousG = state.get<float>(prefix + "previousG", mSize);
+    mDeltaF = state.get<T>(prefix + "deltaF", mDeltaF.size());
+    mDeltaG = state.get<T>(prefix + "deltaG", mDeltaG.size());
+    mPreviousF = state.get<T>(prefix + "previousF", mSize);
+    mPreviousG = state.get<T>(prefix + "previousG", mSize);
     mGram = state.get<double>(prefix + "gram", mGram.size());
     mUsed = int(s[2]);
     mNewest = int(s[3]);
@@ -92,8 +96,9 @@ AndersonMixer::restore(const SolverState& state, const std::string& prefix)
     mCombined = 0;
 }
 
+template<typename T>
 void
-AndersonMixer::restart()
+AndersonMixerT<T>::restart()
 {
     mUsed = 0;
     mNewest = -1;
@@ -101,8 +106,9 @@ AndersonMixer::restart()
     mHavePrevious = false;
 }
 
+template<typename T>
 void
-AndersonMixer::mix(const float* x, float* gx)
+AndersonMixerT<T>::mix(const T* x, T* gx)
 {
     const size_t n = mSize, blocks = (n + kBlock - 1) / kBlock;
     const size_t m = size_t(mDepth);
@@ -113,15 +119,15 @@ AndersonMixer::mix(const float* x, float* gx)
         // scale: a power of two that brings max |G(x)| near 1, so that differences of a state
         // of 1e-30 (or 1e30) stay in float's normal range, and a scaled problem gives scaled
         // bits.
-        float top = 0.f;
+        T top = 0;
         for (size_t i = 0; i < n; ++i) top = std::max(top, std::abs(gx[i]));
         int e = 0;
-        if (top > 0.f && std::isfinite(top)) std::frexp(top, &e);
+        if (top > 0 && std::isfinite(top)) std::frexp(top, &e);
         mScaleExponent = -e;
         const double scale = std::ldexp(1.0, mScaleExponent);
         for (size_t i = 0; i < n; ++i) {
-            mPreviousF[i] = float((double(gx[i]) - double(x[i])) * scale);
-            mPreviousG[i] = float(double(gx[i]) * scale);
+            mPreviousF[i] = T((double(gx[i]) - double(x[i])) * scale);
+            mPreviousG[i] = T(double(gx[i]) * scale);
         }
         mHavePrevious = true;
         return;
@@ -132,12 +138,12 @@ AndersonMixer::mix(const float* x, float* gx)
     mNewest = (mNewest + 1) % mDepth;
     mUsed = std::min(mUsed + 1, mDepth);
     const size_t slot = size_t(mNewest);
-    float* dF = &mDeltaF[slot * n];
-    float* dG = &mDeltaG[slot * n];
+    T* dF = &mDeltaF[slot * n];
+    T* dG = &mDeltaG[slot * n];
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            const float f = float((double(gx[i]) - double(x[i])) * scale);
-            const float g = float(double(gx[i]) * scale);
+            const T f = T((double(gx[i]) - double(x[i])) * scale);
+            const T g = T(double(gx[i]) * scale);
             dF[i] = f - mPreviousF[i];
             dG[i] = g - mPreviousG[i];
             mPreviousF[i] = f;
@@ -156,7 +162,7 @@ AndersonMixer::mix(const float* x, float* gx)
             double* row = &partial[b * 2 * m];
             double* rhs = row + m;
             for (size_t j = 0; j < used; ++j) {
-                const float* c = &mDeltaF[j * n];
+                const T* c = &mDeltaF[j * n];
                 double sRow = 0.0, sRhs = 0.0;
                 for (size_t i = lo; i < hi; ++i) {
                     sRow += double(dF[i]) * double(c[i]);
@@ -223,7 +229,7 @@ AndersonMixer::mix(const float* x, float* gx)
             for (size_t a = 0; a < K; ++a) {
                 v -= gamma[a] * double(mDeltaG[kept[a] * n + i]) * unscale;
             }
-            gx[i] = float(v);
+            gx[i] = T(v);
             ok = ok && std::isfinite(gx[i]);
         }
         if (!ok) finite = false;
@@ -231,17 +237,21 @@ AndersonMixer::mix(const float* x, float* gx)
     if (!finite) rejectLastStep(gx);
 }
 
+template<typename T>
 void
-AndersonMixer::rejectLastStep(float* gx)
+AndersonMixerT<T>::rejectLastStep(T* gx)
 {
     if (!mHavePrevious) return;
     const double unscale = std::ldexp(1.0, -mScaleExponent);
-    for (size_t i = 0; i < mSize; ++i) gx[i] = float(double(mPreviousG[i]) * unscale);
+    for (size_t i = 0; i < mSize; ++i) gx[i] = T(double(mPreviousG[i]) * unscale);
     ++mRejected;
     // Keep G(x_k) and f_k as the start of the new history.
     mUsed = 0;
     mNewest = -1;
     mCombined = 0;
 }
+
+template class AndersonMixerT<float>;
+template class AndersonMixerT<double>;
 
 } // namespace vdbrad

@@ -16,9 +16,10 @@
 // sweep per iteration, as before, plus 3m multiply-adds per unknown; the memory is 2m + 2
 // vectors of the state (bytes() says how much).
 //
-// Precision: the history is stored in float like the state (its differences are accurate to
-// float rounding of the state, far below the tolerances used), the small least-squares problem
-// is solved in double. Its normal equations are factored by a Cholesky decomposition that skips
+// Precision: the history is stored in the state's own type T (float, or double for a surface
+// solve with albedos near 1, RadiositySolver.h: there the combination's coefficients grow like
+// 1 / (1 - rho), and a float history would amplify its rounding by as much); the small
+// least-squares problem is solved in double. Its normal equations are factored by a Cholesky decomposition that skips
 // columns whose pivot is below 1e-8 of their squared norm (nearly dependent differences, which
 // appear as the iteration converges), newest first, so the oldest redundant ones are dropped.
 //
@@ -48,23 +49,24 @@ enum class Acceleration
 Acceleration accelerationFromString(const std::string& name);
 const char* toString(Acceleration a);
 
-class AndersonMixer
+template<typename T>
+class AndersonMixerT
 {
 public:
     /// @param size  unknowns in the state
     /// @param depth history length m >= 1
-    AndersonMixer(size_t size, int depth);
+    AndersonMixerT(size_t size, int depth);
 
     /// @brief One Anderson step.
     /// @param x   the iterate the map was applied to (size() values)
     /// @param gx  its image G(x); on return, the next iterate
-    void mix(const float* x, float* gx);
+    void mix(const T* x, T* gx);
 
     /// @brief Undo the last mix(): @a gx becomes G(x) again, the plain step, and the history
     /// restarts. For a mixed iterate the caller finds unphysical (a negative radiance: the
     /// least-squares step extrapolates, and on a nearly singular problem it can overshoot).
     /// mix() itself does this when the mixed iterate is not finite.
-    void rejectLastStep(float* gx);
+    void rejectLastStep(T* gx);
 
     /// Forget the history (the next mix() is a plain step that starts a new one).
     void restart();
@@ -94,9 +96,11 @@ private:
     bool mHavePrevious = false;
     size_t mRejected = 0;
     int mScaleExponent = 0;                // the history holds values x 2^mScaleExponent
-    std::vector<float> mDeltaF, mDeltaG;   // depth columns of size values each
-    std::vector<float> mPreviousF, mPreviousG;
+    std::vector<T> mDeltaF, mDeltaG;       // depth columns of size values each
+    std::vector<T> mPreviousF, mPreviousG;
     std::vector<double> mGram;             // depth x depth, dF_i . dF_j
 };
+
+using AndersonMixer = AndersonMixerT<float>;
 
 } // namespace vdbrad

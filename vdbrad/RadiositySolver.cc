@@ -16,6 +16,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <tuple>
+#include <type_traits>
 
 namespace vdbrad {
 
@@ -25,26 +27,47 @@ namespace vdbrad {
 // and 1.6e5 leaves: 44 MiB, 0.8 s. Larger boxes keep their digitisation losses.
 constexpr uint64_t kEnclosureBlocks = uint64_t(1) << 29;
 
+// Above this albedo, Precision::Auto solves in double: the float floor (~6e-8 of B per sweep,
+// amplified by 1 / (1 - rho) at the fixed point) would exceed ~1e-5 (BENCHMARKS.md, Extremes).
+constexpr float kDoubleAlbedo = 0.999f;
+
 namespace {
 
-// Each group sums about directions / kGroups terms per voxel: float keeps those short sums to
-// ~1e-6 relative and halves the memory traffic of the sweeps' hottest write; the groups are added
-// in double.
-template<typename ValueT> struct Accumulator;
-template<> struct Accumulator<float> { using Type = float; using Wide = double; };
-template<> struct Accumulator<openvdb::Vec3f>
+// The four state types: grey or RGB, float or double (Precision). Scalar is one channel; Acc is
+// a group's accumulator, Wide the type the groups are added in.
+//
+// In float, each group sums about directions / kGroups terms per voxel: float keeps those short
+// sums to ~1e-6 relative and halves the memory traffic of the sweeps' hottest write; the groups
+// are added in double. In double everything is double (the hit weights too), so that a closed
+// room's renormalised weights add up to 1 within ~1e-15 and 1 / (1 - rho) = 1e6 leaves 1e-9.
+template<typename ValueT> struct Traits;
+template<> struct Traits<float> { using Acc = float; using Wide = double; using Scalar = float; };
+template<> struct Traits<openvdb::Vec3f>
 {
-    using Type = openvdb::Vec3f;
+    using Acc = openvdb::Vec3f;
     using Wide = openvdb::Vec3d;
+    using Scalar = float;
+};
+template<> struct Traits<double> { using Acc = double; using Wide = double; using Scalar = double; };
+template<> struct Traits<openvdb::Vec3d>
+{
+    using Acc = openvdb::Vec3d;
+    using Wide = openvdb::Vec3d;
+    using Scalar = double;
 };
 
-inline float magnitude(float v) { return std::abs(v); }
-inline float magnitude(const openvdb::Vec3f& v) { return std::max({v[0], v[1], v[2]}); }
-inline float magnitudeOfDiff(float a, float b) { return std::abs(a - b); }
-inline float magnitudeOfDiff(const openvdb::Vec3f& a, const openvdb::Vec3f& b)
+// Largest channel of a value, and of a difference (computed in the value's own precision).
+template<typename T> double magnitude(T v) { return std::abs(double(v)); }
+template<typename T> double magnitude(const openvdb::math::Vec3<T>& v)
 {
-    const openvdb::Vec3f d = a - b;
-    return std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])});
+    return double(std::max({v[0], v[1], v[2]}));
+}
+template<typename T> double magnitudeOfDiff(T a, T b) { return magnitude(a - b); }
+template<typename T>
+double magnitudeOfDiff(const openvdb::math::Vec3<T>& a, const openvdb::math::Vec3<T>& b)
+{
+    const openvdb::math::Vec3<T> d = a - b;
+    return double(std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])}));
 }
 template<typename ValueT> ValueT value(const Attribute& a, size_t i);
 template<> inline float value<float>(const Attribute& a, size_t i) { return a.grey(i); }
@@ -52,12 +75,55 @@ template<> inline openvdb::Vec3f value<openvdb::Vec3f>(const Attribute& a, size_
 {
     return a.rgb(i);
 }
-inline float narrow(double v) { return float(v); }
-inline openvdb::Vec3f narrow(const openvdb::Vec3d& v) { return openvdb::Vec3f(v); }
-inline double widen(float v) { return double(v); }
-inline openvdb::Vec3d widen(const openvdb::Vec3f& v) { return openvdb::Vec3d(v); }
+template<> inline double value<double>(const Attribute& a, size_t i) { return a.grey(i); }
+template<> inline openvdb::Vec3d value<openvdb::Vec3d>(const Attribute& a, size_t i)
+{
+    return openvdb::Vec3d(a.rgb(i));
+}
+
+// Largest albedo channel of any voxel.
+float
+maxAlbedo(const Attribute& a)
+{
+    float top = a.uniformValue();
+    for (float v : a.greyArray()) top = std::max(top, v);
+    for (const openvdb::Vec3f& v : a.rgbArray()) top = std::max({top, v[0], v[1], v[2]});
+    return top;
+}
+
+bool
+solvesInDouble(const Scene& scene, const RadiosityOptions& options)
+{
+    switch (options.precision) {
+        case Precision::Float: return false;
+        case Precision::Double: return true;
+        case Precision::Auto: break;
+    }
+    return maxAlbedo(scene.albedo()) > kDoubleAlbedo;
+}
 
 } // namespace
+
+Precision
+precisionFromString(const std::string& name)
+{
+    if (name == "auto") return Precision::Auto;
+    if (name == "float") return Precision::Float;
+    if (name == "double") return Precision::Double;
+    OPENVDB_THROW(openvdb::ValueError, "unknown precision '" << name
+        << "' (expected auto, float or double)");
+}
+
+const char*
+toString(Precision p)
+{
+    switch (p) {
+        case Precision::Float: return "float";
+        case Precision::Double: return "double";
+        case Precision::Auto: break;
+    }
+    return "auto";
+}
 
 // What the solver needs that does not depend on the value type.
 struct RadiositySolver::Impl
@@ -75,17 +141,56 @@ struct RadiositySolver::Impl
     std::unique_ptr<RayCastVisibility> rays;             // Visibility::RayCast only
     std::vector<char> reversed;                          // per direction
     std::vector<float> coefficient;                      // per direction: A / |s|
-    std::vector<float> invZ;                             // per voxel: 1 / Z(n)
+    std::vector<double> invZ;                            // per voxel: 1 / Z(n)
     Regions regions;                                     // per voxel: the air region it faces
     bool hitsKnown = false;                              // invZ renormalised for closed voxels
     bool gatheredStale = false;                          // B was replaced: next step is Jacobi
-    std::vector<float> grey;
-    std::vector<openvdb::Vec3f> rgb;
-    std::vector<float> greyUnshot;                       // progressive shooting only
-    std::vector<openvdb::Vec3f> rgbUnshot;
-    std::vector<std::vector<float>> greyGathered;           // per group, kept between iterations
-    std::vector<std::vector<openvdb::Vec3f>> rgbGathered;
-    std::unique_ptr<AndersonMixer> mixer;                // Acceleration::Anderson only
+    bool wide = false;                                   // the state is double (Precision)
+
+    // The iterate and what the next iteration needs of the last one, in one of the four types.
+    template<typename ValueT>
+    struct State
+    {
+        using Scalar = typename Traits<ValueT>::Scalar;
+        static constexpr size_t kWidth = sizeof(ValueT) / sizeof(Scalar);
+        std::vector<ValueT> B;
+        std::vector<ValueT> unshot;                          // progressive shooting only
+        std::vector<std::vector<typename Traits<ValueT>::Acc>> gathered;   // per group
+        std::unique_ptr<AndersonMixerT<Scalar>> mixer;       // Acceleration::Anderson only
+    };
+    // Only the one of the scene's kind and precision is used; in double, the float one of the
+    // same kind holds B rounded to float after every change, for grey(), rgb() and grid().
+    std::tuple<State<float>, State<openvdb::Vec3f>, State<double>, State<openvdb::Vec3d>> states;
+    template<typename ValueT> State<ValueT>& state() { return std::get<State<ValueT>>(states); }
+    template<typename ValueT> const State<ValueT>& state() const
+    {
+        return std::get<State<ValueT>>(states);
+    }
+    // f(state) for the state in use.
+    template<typename F> void withState(bool rgb, F&& f) { visit(*this, rgb, f); }
+    template<typename F> void withState(bool rgb, F&& f) const { visit(*this, rgb, f); }
+    template<typename Self, typename F> static void visit(Self& self, bool rgb, F& f)
+    {
+        if (self.wide) {
+            if (rgb) f(self.template state<openvdb::Vec3d>());
+            else f(self.template state<double>());
+        } else {
+            if (rgb) f(self.template state<openvdb::Vec3f>());
+            else f(self.template state<float>());
+        }
+    }
+    // After a change of a double B: its float rounding.
+    void narrowView()
+    {
+        if (!wide) return;
+        auto copy = [](auto& to, const auto& from) {
+            using T = typename std::decay_t<decltype(to)>::value_type;
+            to.resize(from.size());
+            for (size_t i = 0; i < from.size(); ++i) to[i] = T(from[i]);
+        };
+        copy(state<float>().B, state<double>().B);
+        copy(state<openvdb::Vec3f>().B, state<openvdb::Vec3d>().B);
+    }
 
     static int patternOf(int group) { return group % 4; }
     // The directions of group g: every other one of its pattern's.
@@ -99,11 +204,34 @@ struct RadiositySolver::Impl
 template<typename ValueT>
 struct RadiositySolver::Engine
 {
-    using AccT = typename Accumulator<ValueT>::Type;
-    using WideT = typename Accumulator<ValueT>::Wide;
+    using AccT = typename Traits<ValueT>::Acc;
+    using WideT = typename Traits<ValueT>::Wide;
+    using Scalar = typename Traits<ValueT>::Scalar;
 
-    static std::vector<std::vector<AccT>>& accumulators(Impl& impl);
-    static std::vector<ValueT>& unshot(Impl& impl);
+    // One iteration, then the Anderson step when accelerated.
+    static double step(RadiositySolver& s, openvdb::util::NullInterrupter* interrupt)
+    {
+        Impl& impl = *s.mImpl;
+        Impl::State<ValueT>& st = impl.state<ValueT>();
+        static_assert(sizeof(ValueT) == Impl::State<ValueT>::kWidth * sizeof(Scalar),
+            "the state is mixed as scalars");
+        Scalar* state = reinterpret_cast<Scalar*>(st.B.data());
+        // The first sweep measures the hit weights and so changes the map: mixing starts after it.
+        const bool mix = st.mixer && impl.hitsKnown;
+        std::vector<Scalar> x;
+        if (mix) x.assign(state, state + st.mixer->size());
+        const double residual = iterate(s, st.B, interrupt);
+        if (mix) {
+            st.mixer->mix(x.data(), state);
+            // Radiosity is never negative: a mixed iterate that is has overshot; keep the sweep's.
+            const size_t size = st.mixer->size();
+            if (std::any_of(state, state + size, [](Scalar v) { return v < 0; })) {
+                st.mixer->rejectLastStep(state);
+            }
+        }
+        impl.narrowView();
+        return residual;
+    }
 
     static double iterate(RadiositySolver& s, std::vector<ValueT>& B,
         openvdb::util::NullInterrupter* interrupt)
@@ -114,22 +242,23 @@ struct RadiositySolver::Engine
         const size_t n = scene.size();
         const size_t dirs = s.mDirections.size();
         // Per group, its directions' gathered sum; kept between iterations for in-place updates.
-        std::vector<std::vector<AccT>>& gathered = accumulators(impl);
+        std::vector<std::vector<AccT>>& gathered = impl.state<ValueT>().gathered;
         gathered.resize(size_t(kGroups));
         // The first iteration also measures, per voxel, the weight of the directions that meet
         // a voxel: closed-cavity voxels are renormalised over those (Enclosure.h). It is always
         // a plain Jacobi step, so that every group has a sum before in-place updates use them.
         const bool measureHits = !impl.hitsKnown;
-        const bool inPlace = s.mOptions.update == UpdateScheme::InPlace && !impl.mixer;
+        const bool inPlace = s.mOptions.update == UpdateScheme::InPlace
+            && s.mOptions.accelerate == Acceleration::None;
         // After setRadiosity() the kept sums belong to another B: one full Jacobi step first.
         const int phases = (measureHits || !inPlace || impl.gatheredStale) ? 1 : 2;
         impl.gatheredStale = false;
         // Progressive shooting: the sweeps carry the unshot radiosity U, whose gathered light
         // is both added to B and the next U.
         const bool shooting = s.mOptions.update == UpdateScheme::Progressive;
-        std::vector<ValueT>& U = unshot(impl);
+        std::vector<ValueT>& U = impl.state<ValueT>().unshot;
         const std::vector<ValueT>& source = shooting ? U : B;
-        std::vector<std::vector<float>> hits(static_cast<size_t>(kGroups));
+        std::vector<std::vector<Scalar>> hits(static_cast<size_t>(kGroups));
         std::atomic<size_t> done{0};
         std::atomic<bool> cancelled{false};
         const std::vector<ValueT> previous = B;
@@ -139,7 +268,8 @@ struct RadiositySolver::Engine
             auto sum = zero;
             for (int g = 0; g < kGroups; ++g) {
                 const auto& a = arrays[size_t(g)];
-                if (!a.empty()) sum += widen(a[impl.patterns[size_t(Impl::patternOf(g))].position[i]]);
+                if (a.empty()) continue;
+                sum += decltype(zero)(a[impl.patterns[size_t(Impl::patternOf(g))].position[i]]);
             }
             return sum;
         };
@@ -170,8 +300,8 @@ struct RadiositySolver::Engine
                         const std::vector<ValueT>& Bp = ordered[p];
                         std::vector<AccT>& G = gathered[size_t(g)];
                         G.assign(n, openvdb::zeroVal<AccT>());
-                        std::vector<float>* H = measureHits ? &hits[size_t(g)] : nullptr;
-                        if (H) H->assign(n, 0.f);
+                        std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
+                        if (H) H->assign(n, Scalar(0));
                         LineSweep::Workspace<ValueT> work;
                         impl.forDirections(g, [&](size_t k) {
                             if (cancelled.load(std::memory_order_relaxed)) return;
@@ -210,7 +340,7 @@ struct RadiositySolver::Engine
                         for (size_t i = r.begin(); i != r.end(); ++i) {
                             if (impl.regions.region[i] == 0) continue;   // faces the outside
                             const double h = sumGroups(hits, i, 0.0);
-                            if (h > 0.0) impl.invZ[i] = float(1.0 / h);
+                            if (h > 0.0) impl.invZ[i] = 1.0 / h;
                         }
                     });
                 impl.hitsKnown = true;
@@ -219,7 +349,7 @@ struct RadiositySolver::Engine
                 [&](const tbb::blocked_range<size_t>& r) {
                     for (size_t i = r.begin(); i != r.end(); ++i) {
                         const WideT sum = sumGroups(gathered, i, openvdb::zeroVal<WideT>());
-                        const ValueT incoming = narrow(sum * double(impl.invZ[i]));
+                        const ValueT incoming = ValueT(sum * impl.invZ[i]);
                         if (shooting) {
                             U[i] = value<ValueT>(scene.albedo(), i) * incoming;
                             B[i] += U[i];
@@ -231,42 +361,14 @@ struct RadiositySolver::Engine
                 });
         }
 
-        float maxChange = 0.f, maxSize = 0.f;
+        double maxChange = 0.0, maxSize = 0.0;
         for (size_t i = 0; i < n; ++i) {
             maxChange = std::max(maxChange, magnitudeOfDiff(B[i], previous[i]));
             maxSize = std::max(maxSize, magnitude(B[i]));
         }
-        return maxSize > 0.f ? double(maxChange) / double(maxSize) : 0.0;
+        return maxSize > 0.0 ? maxChange / maxSize : 0.0;
     }
 };
-
-template<>
-std::vector<std::vector<float>>&
-RadiositySolver::Engine<float>::accumulators(Impl& impl)
-{
-    return impl.greyGathered;
-}
-
-template<>
-std::vector<std::vector<openvdb::Vec3f>>&
-RadiositySolver::Engine<openvdb::Vec3f>::accumulators(Impl& impl)
-{
-    return impl.rgbGathered;
-}
-
-template<>
-std::vector<float>&
-RadiositySolver::Engine<float>::unshot(Impl& impl)
-{
-    return impl.greyUnshot;
-}
-
-template<>
-std::vector<openvdb::Vec3f>&
-RadiositySolver::Engine<openvdb::Vec3f>::unshot(Impl& impl)
-{
-    return impl.rgbUnshot;
-}
 
 RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& options)
     : mScene(scene)
@@ -316,17 +418,17 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     // Z costs one pass over the directions per voxel; walls of explicit scenes repeat a few
     // normals many times, so each range remembers the last few it computed.
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
-        std::array<std::pair<openvdb::Vec3f, float>, 8> recent;
+        std::array<std::pair<openvdb::Vec3f, double>, 8> recent;
         size_t filled = 0, next = 0;
         for (size_t i = r.begin(); i != r.end(); ++i) {
             const openvdb::Vec3f& nrm = scene.normal(i);
-            float inv = 0.f;
+            double inv = 0.0;
             bool found = false;
             for (size_t k = 0; k < filled && !found; ++k) {
                 if (recent[k].first == nrm) { inv = recent[k].second; found = true; }
             }
             if (!found) {
-                inv = float(1.0 / mDirections.hemisphereSum(openvdb::Vec3d(nrm)));
+                inv = 1.0 / mDirections.hemisphereSum(openvdb::Vec3d(nrm));
                 recent[next] = {nrm, inv};
                 next = (next + 1) % recent.size();
                 filled = std::min(filled + 1, recent.size());
@@ -353,21 +455,20 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
             options.occlusionDepth, impl.regions.cavities > 0 ? &impl.regions.region : nullptr));
     }
 
-    if (scene.isRgb()) {
-        impl.rgb.resize(n);
-        for (size_t i = 0; i < n; ++i) impl.rgb[i] = scene.emission().rgb(i);
-    } else {
-        impl.grey.resize(n);
-        for (size_t i = 0; i < n; ++i) impl.grey[i] = scene.emission().grey(i);
-    }
-    if (options.accelerate == Acceleration::Anderson) {
-        impl.mixer.reset(new AndersonMixer(n * (scene.isRgb() ? 3 : 1), options.andersonDepth));
-    }
-    // Nothing has been shot yet: all of E is unshot.
-    if (options.update == UpdateScheme::Progressive) {
-        impl.greyUnshot = impl.grey;
-        impl.rgbUnshot = impl.rgb;
-    }
+    impl.wide = solvesInDouble(scene, options);
+    impl.withState(scene.isRgb(), [&](auto& st) {
+        using StateT = std::decay_t<decltype(st)>;
+        using ValueT = typename decltype(st.B)::value_type;
+        st.B.resize(n);
+        for (size_t i = 0; i < n; ++i) st.B[i] = value<ValueT>(scene.emission(), i);
+        if (options.accelerate == Acceleration::Anderson) {
+            st.mixer.reset(new AndersonMixerT<typename StateT::Scalar>(n * StateT::kWidth,
+                options.andersonDepth));
+        }
+        // Nothing has been shot yet: all of E is unshot.
+        if (options.update == UpdateScheme::Progressive) st.unshot = st.B;
+    });
+    impl.narrowView();
 }
 
 RadiositySolver::~RadiositySolver() = default;
@@ -376,24 +477,12 @@ double
 RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
 {
     const auto t0 = std::chrono::steady_clock::now();
-    Impl& impl = *mImpl;
-    static_assert(sizeof(openvdb::Vec3f) == 3 * sizeof(float), "RGB state is mixed as floats");
-    float* state = mScene.isRgb() ? reinterpret_cast<float*>(impl.rgb.data()) : impl.grey.data();
-    // The first sweep measures the hit weights and so changes the map: mixing starts after it.
-    const bool mix = impl.mixer && impl.hitsKnown;
-    std::vector<float> x;
-    if (mix) x.assign(state, state + impl.mixer->size());
-    const double residual = mScene.isRgb()
-        ? Engine<openvdb::Vec3f>::iterate(*this, impl.rgb, interrupt)
-        : Engine<float>::iterate(*this, impl.grey, interrupt);
-    if (mix) {
-        impl.mixer->mix(x.data(), state);
-        // Radiosity is never negative: a mixed iterate that is has overshot; keep the sweep's.
-        const size_t size = impl.mixer->size();
-        if (std::any_of(state, state + size, [](float v) { return v < 0.f; })) {
-            impl.mixer->rejectLastStep(state);
-        }
-    }
+    const bool rgb = mScene.isRgb();
+    const double residual = mImpl->wide
+        ? (rgb ? Engine<openvdb::Vec3d>::step(*this, interrupt)
+               : Engine<double>::step(*this, interrupt))
+        : (rgb ? Engine<openvdb::Vec3f>::step(*this, interrupt)
+               : Engine<float>::step(*this, interrupt));
     mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     mResiduals.push_back(residual);
     return residual;
@@ -413,7 +502,7 @@ RadiositySolver::solve(openvdb::util::NullInterrupter* interrupt)
 
 template<typename ValueT>
 void
-RadiositySolver::replaceIterate(std::vector<ValueT>& state, const std::vector<ValueT>& b)
+RadiositySolver::replaceIterate(const std::vector<ValueT>& b)
 {
     if (mOptions.update == UpdateScheme::Progressive) {
         OPENVDB_THROW(openvdb::ValueError, "progressive shooting carries unshot radiosity: its "
@@ -423,23 +512,33 @@ RadiositySolver::replaceIterate(std::vector<ValueT>& state, const std::vector<Va
         OPENVDB_THROW(openvdb::ValueError, "setRadiosity: " << b.size() << " values for "
             << mScene.size() << " voxels");
     }
-    state = b;
-    mImpl->gatheredStale = true;
-    if (mImpl->mixer) mImpl->mixer->restart();
+    Impl& impl = *mImpl;
+    impl.withState(mScene.isRgb(), [&](auto& st) {
+        using StateT = std::decay_t<decltype(st)>;
+        using T = typename decltype(st.B)::value_type;
+        // Only the state of b's kind (grey, RGB) is ever given it (checked by the callers).
+        if constexpr (StateT::kWidth * sizeof(float) == sizeof(ValueT)) {
+            st.B.assign(b.size(), T());
+            for (size_t i = 0; i < b.size(); ++i) st.B[i] = T(b[i]);
+        }
+        if (st.mixer) st.mixer->restart();
+    });
+    impl.narrowView();
+    impl.gatheredStale = true;
 }
 
 void
 RadiositySolver::setRadiosity(const std::vector<float>& b)
 {
     if (mScene.isRgb()) OPENVDB_THROW(openvdb::ValueError, "setRadiosity: the scene is RGB");
-    replaceIterate(mImpl->grey, b);
+    replaceIterate(b);
 }
 
 void
 RadiositySolver::setRadiosity(const std::vector<openvdb::Vec3f>& b)
 {
     if (!mScene.isRgb()) OPENVDB_THROW(openvdb::ValueError, "setRadiosity: the scene is grey");
-    replaceIterate(mImpl->rgb, b);
+    replaceIterate(b);
 }
 
 namespace {
@@ -460,19 +559,23 @@ hashAttribute(const Attribute& a, uint64_t h)
 size_t
 RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& options, int threads)
 {
-    const size_t n = scene.size(), c = scene.isRgb() ? 12 : 4, t = size_t(std::max(threads, 1));
+    const bool wide = solvesInDouble(scene, options);
+    const size_t channels = scene.isRgb() ? 3 : 1, scalar = wide ? 8 : 4;
+    const size_t n = scene.size(), c = channels * scalar, t = size_t(std::max(threads, 1));
     // Four visiting-order layouts: order and position (u32 each), the sweep's coordinates,
     // normals and regions in that order.
     size_t perVoxel = 4 * (4 + 4 + 12 + 12 + 4);
-    perVoxel += 4 + 4;                      // invZ, region
+    perVoxel += 8 + 4;                      // invZ, region
     perVoxel += 2 * c + 4 * c;              // B, the previous B, B in each pattern's order
+    if (wide) perVoxel += channels * 4;     // B rounded to float
     perVoxel += size_t(kGroups) * c;        // gathered sums per group
-    perVoxel += size_t(kGroups) * 4;        // hit weights (first iteration)
+    perVoxel += size_t(kGroups) * scalar;   // hit weights (first iteration)
     perVoxel += t * (4 + 8 + c);            // per-thread sweep workspace: slots, line fronts
     if (options.update == UpdateScheme::Progressive) perVoxel += c;
     if (options.accelerate == Acceleration::Anderson) {
         perVoxel += c;                      // the swept iterate
-        perVoxel += AndersonMixer::bytes(c / 4, options.andersonDepth);
+        perVoxel += wide ? AndersonMixerT<double>::bytes(channels, options.andersonDepth)
+                         : AndersonMixerT<float>::bytes(channels, options.andersonDepth);
     }
     size_t bytes = n * perVoxel;
     // Enclosure's fill: per 8^3 block of the bounding box and per leaf, up to its cap.
@@ -489,9 +592,9 @@ RadiositySolver::fingerprint() const
     h = hashBytes(mScene.normals().data(), mScene.size() * sizeof(openvdb::Vec3f), h);
     h = hashAttribute(mScene.albedo(), h);
     h = hashAttribute(mScene.emission(), h);
-    const int64_t options[7] = {mOptions.directions, int64_t(mOptions.lines),
+    const int64_t options[8] = {mOptions.directions, int64_t(mOptions.lines),
         int64_t(mOptions.update), int64_t(mOptions.visibility), int64_t(mOptions.accelerate),
-        mOptions.andersonDepth, int64_t(mDirections.size())};
+        mOptions.andersonDepth, int64_t(mDirections.size()), int64_t(mImpl->wide)};
     h = hashBytes(options, sizeof options, h);
     return hashBytes(&mOptions.occlusionDepth, sizeof(float), h);
 }
@@ -500,80 +603,76 @@ void
 RadiositySolver::saveState(SolverState& state) const
 {
     const Impl& impl = *mImpl;
-    const bool rgb = mScene.isRgb();
-    auto floats = [&](const auto& v) {
-        return std::pair<const float*, size_t>(reinterpret_cast<const float*>(v.data()),
-            v.size() * (rgb ? 3 : 1));
-    };
     state.put("residuals", mResiduals);
     state.put("seconds", &mSeconds, 1);
     const uint8_t flags[2] = {uint8_t(impl.hitsKnown), uint8_t(impl.gatheredStale)};
     state.put("flags", flags, 2);
     state.put("invZ", impl.invZ);
-    auto put = [&](const std::string& name, const auto& v) {
-        const auto [data, count] = floats(v);
-        state.put(name, data, count);
-    };
-    if (rgb) {
-        put("B", impl.rgb);
-        put("unshot", impl.rgbUnshot);
+    impl.withState(mScene.isRgb(), [&](const auto& st) {
+        using StateT = std::decay_t<decltype(st)>;
+        using Scalar = typename StateT::Scalar;
+        // Arrays of channels, in the state's precision.
+        auto put = [&](const std::string& name, const auto& v) {
+            state.put(name, reinterpret_cast<const Scalar*>(v.data()), v.size() * StateT::kWidth);
+        };
+        put("B", st.B);
+        put("unshot", st.unshot);
         for (size_t g = 0; g < size_t(kGroups); ++g) {
-            put("gathered" + std::to_string(g), g < impl.rgbGathered.size()
-                ? impl.rgbGathered[g] : std::vector<openvdb::Vec3f>());
+            put("gathered" + std::to_string(g), g < st.gathered.size()
+                ? st.gathered[g] : typename decltype(st.gathered)::value_type());
         }
-    } else {
-        put("B", impl.grey);
-        put("unshot", impl.greyUnshot);
-        for (size_t g = 0; g < size_t(kGroups); ++g) {
-            put("gathered" + std::to_string(g), g < impl.greyGathered.size()
-                ? impl.greyGathered[g] : std::vector<float>());
-        }
-    }
-    if (impl.mixer) impl.mixer->save(state, "anderson.");
+        if (st.mixer) st.mixer->save(state, "anderson.");
+    });
 }
 
 void
 RadiositySolver::restoreState(const SolverState& state)
 {
     Impl& impl = *mImpl;
-    const bool rgb = mScene.isRgb();
-    const size_t n = mScene.size(), width = rgb ? 3 : 1;
+    const size_t n = mScene.size();
     mResiduals = state.get<double>("residuals");
     mSeconds = state.get<double>("seconds", 1)[0];
     const std::vector<uint8_t> flags = state.get<uint8_t>("flags", 2);
     impl.hitsKnown = flags[0] != 0;
     impl.gatheredStale = flags[1] != 0;
-    impl.invZ = state.get<float>("invZ", n);
-    // Arrays of float channels, empty or of n voxels.
-    auto get = [&](const std::string& name, auto& v) {
-        const std::vector<float> f = state.get<float>(name);
-        if (!f.empty() && f.size() != n * width) {
-            OPENVDB_THROW(openvdb::ValueError, "checkpoint's '" << name << "' has " << f.size()
-                << " values for " << n << " voxels");
+    impl.invZ = state.get<double>("invZ", n);
+    impl.withState(mScene.isRgb(), [&](auto& st) {
+        using StateT = std::decay_t<decltype(st)>;
+        using Scalar = typename StateT::Scalar;
+        constexpr size_t width = StateT::kWidth;
+        // Arrays of channels, empty or of n voxels.
+        auto get = [&](const std::string& name, auto& v) {
+            const std::vector<Scalar> f = state.get<Scalar>(name);
+            if (!f.empty() && f.size() != n * width) {
+                OPENVDB_THROW(openvdb::ValueError, "checkpoint's '" << name << "' has "
+                    << f.size() << " values for " << n << " voxels");
+            }
+            v.resize(f.size() / width);
+            if (!f.empty()) {
+                std::memcpy(static_cast<void*>(v.data()), f.data(), f.size() * sizeof(Scalar));
+            }
+        };
+        get("B", st.B);
+        get("unshot", st.unshot);
+        st.gathered.resize(size_t(kGroups));
+        for (size_t g = 0; g < st.gathered.size(); ++g) {
+            get("gathered" + std::to_string(g), st.gathered[g]);
         }
-        v.resize(f.size() / width);
-        if (!f.empty()) std::memcpy(static_cast<void*>(v.data()), f.data(), f.size() * 4);
-    };
-    auto getGroups = [&](auto& groups) {
-        groups.resize(size_t(kGroups));
-        for (size_t g = 0; g < groups.size(); ++g) get("gathered" + std::to_string(g), groups[g]);
-    };
-    if (rgb) {
-        get("B", impl.rgb);
-        get("unshot", impl.rgbUnshot);
-        getGroups(impl.rgbGathered);
-        if (impl.rgb.size() != n) OPENVDB_THROW(openvdb::ValueError, "checkpoint has no B");
-    } else {
-        get("B", impl.grey);
-        get("unshot", impl.greyUnshot);
-        getGroups(impl.greyGathered);
-        if (impl.grey.size() != n) OPENVDB_THROW(openvdb::ValueError, "checkpoint has no B");
-    }
-    if (impl.mixer) impl.mixer->restore(state, "anderson.");
+        if (st.B.size() != n) OPENVDB_THROW(openvdb::ValueError, "checkpoint has no B");
+        if (st.mixer) st.mixer->restore(state, "anderson.");
+    });
+    impl.narrowView();
 }
 
-const std::vector<float>& RadiositySolver::grey() const { return mImpl->grey; }
-const std::vector<openvdb::Vec3f>& RadiositySolver::rgb() const { return mImpl->rgb; }
+const std::vector<float>& RadiositySolver::grey() const
+{
+    return mImpl->state<float>().B;
+}
+const std::vector<openvdb::Vec3f>& RadiositySolver::rgb() const
+{
+    return mImpl->state<openvdb::Vec3f>().B;
+}
+bool RadiositySolver::doublePrecision() const { return mImpl->wide; }
 
 SolveStats
 RadiositySolver::stats() const
@@ -590,8 +689,8 @@ RadiositySolver::stats() const
 openvdb::GridBase::Ptr
 RadiositySolver::grid() const
 {
-    return mScene.isRgb() ? makeRadiosityGrid(mScene, mImpl->rgb, stats())
-                          : makeRadiosityGrid(mScene, mImpl->grey, stats());
+    return mScene.isRgb() ? makeRadiosityGrid(mScene, rgb(), stats())
+                          : makeRadiosityGrid(mScene, grey(), stats());
 }
 
 openvdb::GridBase::Ptr

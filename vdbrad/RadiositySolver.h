@@ -14,9 +14,15 @@
 // halves and updates B after each, so the second half gathers light the first half just moved
 // (block Gauss-Seidel over directions; fewer iterations, same cost per iteration); progressive
 // shooting sweeps the unshot radiosity and adds what it delivers (one bounce per iteration). The relative
-// residual max|B' - B| / max|B'| over a whole iteration is reported per iteration. Precision: storage is float; each accumulator group sums about
-// directions / kGroups terms per voxel in float (~1e-6 relative), and the groups, the
-// per-voxel normalisation and the residual are computed in double.
+// residual max|B' - B| / max|B'| over a whole iteration is reported per iteration.
+//
+// Precision: storage is float; each accumulator group sums about directions / kGroups terms per
+// voxel in float (~1e-6 relative), and the groups, the per-voxel normalisation and the residual
+// are computed in double. That is enough while 1 / (1 - rho) is moderate, but the fixed point
+// amplifies any rounding of B or of the gathered light by 1 / (1 - rho): at rho = 1 - 1e-6 float
+// leaves errors of a few percent whatever the iteration count. So a scene with an albedo above
+// 0.999 is solved in double throughout (B, the lines' payloads, the accumulators, the hit
+// weights, the Anderson history): Precision::Auto; Float and Double force either.
 //
 // Threads: directions are dealt to a fixed number of groups (kGroups, independent of the thread
 // count); each group sweeps its directions one after the other into its own accumulator, and the
@@ -35,6 +41,7 @@
 #include <openvdb/util/NullInterrupter.h>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace vdbrad {
@@ -65,6 +72,19 @@ enum class Visibility
     RayCast
 };
 
+/// The floating-point type of the solver's state (see the file comment).
+enum class Precision
+{
+    /// Double when some albedo exceeds 0.999, float otherwise.
+    Auto,
+    Float,
+    Double
+};
+
+/// "auto", "float" or "double"; throws openvdb::ValueError otherwise.
+Precision precisionFromString(const std::string& name);
+const char* toString(Precision p);
+
 struct RadiosityOptions
 {
     /// Number of direction pairs (one sweep serves s and -s); the nearest count a discrete
@@ -89,6 +109,8 @@ struct RadiosityOptions
     Acceleration accelerate = Acceleration::None;
     /// Anderson history length m: 2m + 2 copies of B are kept.
     int andersonDepth = 16;
+    /// Float or double state (Auto: double only for albedos above 0.999).
+    Precision precision = Precision::Auto;
 };
 
 class RadiositySolver
@@ -118,8 +140,11 @@ public:
     const DirectionSet& directions() const { return mDirections; }
 
     /// The current radiosity: grey() for a grey scene, rgb() for an RGB one (Scene::isRgb()).
+    /// In double precision, these are B rounded to float.
     const std::vector<float>& grey() const;
     const std::vector<openvdb::Vec3f>& rgb() const;
+    /// True if the state is double (RadiosityOptions::precision).
+    bool doublePrecision() const;
 
     /// @brief Make @a b (one value per voxel, in Scene order) the iterate the next iterate()
     /// sweeps: a restart from a known state. The next step is a Jacobi one and an Anderson
@@ -153,8 +178,7 @@ public:
 private:
     struct Impl;
     template<typename ValueT> struct Engine;
-    template<typename ValueT>
-    void replaceIterate(std::vector<ValueT>& state, const std::vector<ValueT>& b);
+    template<typename ValueT> void replaceIterate(const std::vector<ValueT>& b);
     const Scene& mScene;
     RadiosityOptions mOptions;
     DirectionSet mDirections;
