@@ -392,18 +392,19 @@ TEST_F(CloudTest, PlainSweepsConvergeOnOpaqueConservativeVoxels)
 }
 
 // Issue 8, extremes: Henyey-Greenstein g from -0.99 (backward) to 0.99 (forward) against the
-// exact slab (adding-doubling), tau = 2, omega0 = 0.9, 4 x 10 x 4 voxels, order 8 with delta-M.
-// Forward peaks: within 3% (plus 1e-3 absolute for the tiny albedo at g = 0.99). A backward
-// peak has no delta-M: order 8 keeps only its first moments, and the retro-reflected light
-// beyond them is lost to the truncation (measured at g = -0.99: albedo +5%, transmittance -32%;
-// README "Not yet"): there only stability and the energy balance are asserted.
+// exact slab, tau = 2, omega0 = 0.9, 4 x 10 x 4 voxels, order 8 with delta-M. The reference is
+// adding-doubling where its quadrature holds (|g| <= 0.95) and the photon Monte Carlo (2e6
+// photons, standard error ~3e-4) at |g| = 0.99. Within 3% (plus 1e-3 absolute for the tiny
+// albedo at g = 0.99, plus 4 standard errors). A backward peak needs more directions, because
+// the light it retro-reflects stays in a narrow cone around the beam: g = -0.99 is run with 967
+// (measured R -0.7%, T +0.1%; with 303: R -1.5%, T -3.3%).
 TEST_F(CloudTest, AsymmetryFromMinus099To099AgreesWithTheExactSlab)
 {
     const Cloud cloud = slab(4, 10, 4, 2.0, 0.9f);
     for (double g : {-0.99, 0.0, 0.85, 0.99}) {
         CloudTransferOptions o;
         o.periodic = true;
-        o.directions = 300;
+        o.directions = g < -0.95 ? 1000 : 300;
         o.tolerance = 1e-7;
         o.maxIterations = 600;
         o.accelerate = Acceleration::Anderson;
@@ -414,17 +415,22 @@ TEST_F(CloudTest, AsymmetryFromMinus099To099AgreesWithTheExactSlab)
         problem.tau = 2.0;
         problem.omega0 = 0.9;
         problem.g = g;
-        const test::SlabResult exact = test::addingDoublingSlab(problem);
+        test::MonteCarloRun run;
+        run.photons = 2000000;
+        run.seed = 5;
+        const test::SlabResult exact = std::abs(g) > 0.95 ? test::slabMonteCarlo(problem, run)
+                                                          : test::addingDoublingSlab(problem);
         const CloudBudget& b = transfer.budget();
-        std::printf("g %+.2f: %d sweeps, R %.5f (exact %.5f) T %.5f (exact %.5f) balance %.2g\n",
-            g, transfer.iterationCount(), b.albedo, exact.reflectance, b.transmittance,
-            exact.transmittance, b.balance());
+        std::printf("g %+.2f: %d directions, %d sweeps, R %.5f (exact %.5f) T %.5f (exact %.5f) "
+            "balance %.2g\n", g, int(transfer.directions().size()), transfer.iterationCount(),
+            b.albedo, exact.reflectance, b.transmittance, exact.transmittance, b.balance());
         EXPECT_TRUE(transfer.converged()) << g;
         for (float J : transfer.meanIntensity()) ASSERT_TRUE(std::isfinite(J) && J >= 0.f) << g;
         EXPECT_NEAR(b.balance(), 0.0, 1e-5) << g;
-        if (g < 0.0) continue;
-        EXPECT_NEAR(b.albedo, exact.reflectance, 0.03 * exact.reflectance + 1e-3) << g;
-        EXPECT_NEAR(b.transmittance, exact.transmittance, 0.03 * exact.transmittance) << g;
+        EXPECT_NEAR(b.albedo, exact.reflectance, 0.03 * exact.reflectance + 1e-3
+            + 4.0 * exact.reflectanceStderr) << g;
+        EXPECT_NEAR(b.transmittance, exact.transmittance, 0.03 * exact.transmittance
+            + 4.0 * exact.transmittanceStderr) << g;
     }
 }
 
