@@ -30,6 +30,18 @@ protected:
 
 using test::canonicalScene;
 
+// The furnace tests' Anderson solve: 50 directions, to @a tolerance or @a iterations sweeps.
+RadiosityOptions
+andersonFurnaceOptions(int iterations, double tolerance)
+{
+    RadiosityOptions o;
+    o.directions = 50;
+    o.maxIterations = iterations;
+    o.tolerance = tolerance;
+    o.accelerate = Acceleration::Anderson;
+    return o;
+}
+
 // Explicit surface grids (normal, emission, albedo) that boxShell() adds voxels to.
 openvdb::GridPtrVec
 emptyScene(double voxelSize = 0.1)
@@ -173,12 +185,7 @@ TEST_F(RadiosityTest, AndersonSolvesAFurnaceAtAlbedo0999InSixtySweeps)
     // convergence at rho = 0.99 (~2,000 sweeps).
     for (const char* name : {"furnace-box", "furnace-sphere"}) {
         const Scene scene = canonicalScene(name, 12, 0.999f, 2.f);
-        RadiosityOptions o;
-        o.directions = 50;
-        o.maxIterations = 60;
-        o.tolerance = 1e-9;
-        o.accelerate = Acceleration::Anderson;
-        RadiositySolver solver(scene, o);
+        RadiositySolver solver(scene, andersonFurnaceOptions(60, 1e-9));
         solver.solve();
         const double exact = 2.0 / (1.0 - 0.999);
         double worst = 0.0;
@@ -674,12 +681,7 @@ TEST_F(RadiosityTest, FurnaceIsExactAndFiniteFromAlbedo0To1MinusOneMillionth)
         for (const auto& c : cases) {
             const float rho = float(c.rho);
             const Scene scene = canonicalScene(name, 12, rho, 1.f);
-            RadiosityOptions o;
-            o.directions = 50;
-            o.maxIterations = 100;
-            o.tolerance = 1e-8;
-            o.accelerate = Acceleration::Anderson;
-            RadiositySolver solver(scene, o);
+            RadiositySolver solver(scene, andersonFurnaceOptions(100, 1e-8));
             EXPECT_EQ(solver.doublePrecision(), c.wide) << name << " rho " << c.rho;
             solver.solve();
             const double exact = 1.0 / (1.0 - double(rho));
@@ -714,12 +716,7 @@ TEST_F(RadiosityTest, AlbedosNearOneAreExactInRgbToo)
         Attribute::fromRgb(std::vector<Vec3f>(grey.size(), Vec3f(1.f, 2.f, 4.f))),
         grey.surfaceName(), grey.surfaceKind());
     ASSERT_TRUE(scene.isRgb());
-    RadiosityOptions o;
-    o.directions = 50;
-    o.maxIterations = 60;
-    o.tolerance = 1e-9;
-    o.accelerate = Acceleration::Anderson;
-    RadiositySolver solver(scene, o);
+    RadiositySolver solver(scene, andersonFurnaceOptions(60, 1e-9));
     EXPECT_TRUE(solver.doublePrecision());
     solver.solve();
     double worst = 0.0;
