@@ -1,7 +1,11 @@
 // Solver speed: nanoseconds per voxel x direction x iteration of RadiositySolver on the Cornell
-// box, on 1 and 2 threads, against a baseline run in the same process: one pass that touches the
-// same per-voxel data (coordinates, normals, the gathered value) without any line logic, i.e. the
-// memory traffic floor of a sweep.
+// box, on 1 and 2 threads, against two baselines run in the same process (one thread each):
+//  - "stream": one pass per direction reading each voxel's coordinate and normal, without any
+//    line logic: what any per-voxel, per-direction method must touch;
+//  - "frontier": the bare exchange of a streaming line sweep, per direction (line slots computed
+//    beforehand, not timed): both senses, each voxel swapping its RGB value with its line's
+//    frontier entry and adding what it took to its accumulator, nothing else (no visibility
+//    rule, no normals, no regions): the floor of any sweep that keeps a state per line.
 //
 //   build/benchmarks/bench_solver [res=512] [directions=1000] [iterations=1]
 #include "grids/CanonicalGrids.h"
@@ -10,9 +14,14 @@
 
 #include <tbb/global_control.h>
 
+#include "vdbrad/LinePartition.h"
+
+#include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <vector>
 
 int
 main(int argc, char** argv)
@@ -29,6 +38,45 @@ main(int argc, char** argv)
     // Baseline: per direction, one streaming pass over the voxels reading coordinate and normal
     // and accumulating a dot product: what any per-voxel, per-direction method must touch.
     const vdbrad::DirectionSet set = vdbrad::DirectionSet::fromCount(dirs);
+    double frontierSeconds = 0.0, frontierSink = 0.0;
+    {
+        const size_t n = scene.size();
+        const openvdb::CoordBBox box = scene.voxels().bbox();
+        std::vector<uint32_t> slots(n);
+        std::vector<openvdb::Vec3f> B(n, openvdb::Vec3f(1.f)), acc(n, openvdb::Vec3f(0.f));
+        std::vector<openvdb::Vec3f> fronts;
+        for (size_t k = 0; k < set.size(); ++k) {
+            vdbrad::LinePartition part(set.direction(k), vdbrad::LineType::Naive);
+            part.centreOn(box.min() + box.max());
+            const vdbrad::LinePartition::BoxKeys keys(part, box);
+            int64_t i0 = INT64_MAX, j0 = INT64_MAX, i1 = INT64_MIN, j1 = INT64_MIN;
+            for (size_t v = 0; v < n; ++v) {
+                const vdbrad::LineKey key = keys.key(scene.voxels().coord(v));
+                i0 = std::min(i0, key.i); i1 = std::max(i1, key.i);
+                j0 = std::min(j0, key.j); j1 = std::max(j1, key.j);
+            }
+            for (size_t v = 0; v < n; ++v) {
+                const vdbrad::LineKey key = keys.key(scene.voxels().coord(v));
+                slots[v] = uint32_t((key.i - i0) * (j1 - j0 + 1) + (key.j - j0));
+            }
+            fronts.assign(size_t((i1 - i0 + 1) * (j1 - j0 + 1)), openvdb::Vec3f(0.f));
+            const auto f0 = std::chrono::steady_clock::now();
+            for (size_t v = 0; v < n; ++v) {
+                openvdb::Vec3f& f = fronts[slots[v]];
+                acc[v] += f;
+                f = B[v];
+            }
+            std::fill(fronts.begin(), fronts.end(), openvdb::Vec3f(0.f));
+            for (size_t v = n; v-- > 0;) {
+                openvdb::Vec3f& f = fronts[slots[v]];
+                acc[v] += f;
+                f = B[v];
+            }
+            frontierSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - f0)
+                .count();
+        }
+        for (const openvdb::Vec3f& a : acc) frontierSink += a[0];
+    }
     for (int threads : {1, 2}) {
         tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
         vdbrad::RadiosityOptions o;
@@ -57,11 +105,14 @@ main(int argc, char** argv)
         }
         const double base = std::chrono::duration<double>(std::chrono::steady_clock::now() - b0)
             .count() * iterations;
+        const double frontier = frontierSeconds * iterations;
         std::printf("threads %d: %zu directions, setup %.2f s, %d iteration(s) %.2f s: "
-                    "%.2f ns per voxel.direction.iteration (%.2f ns x threads); baseline pass "
-                    "%.2f ns (1 thread): ratio %.1fx%s\n", threads, solver.directions().size(),
-            setup, iterations, solve, 1e9 * solve / work, 1e9 * solve * threads / work,
-            1e9 * base / work, (solve * threads) / base, sink == 42.0 ? " " : "");
+                    "%.2f ns per voxel.direction.iteration (%.2f ns x threads); baselines "
+                    "(1 thread): stream %.2f ns (ratio %.1fx), frontier %.2f ns (ratio %.1fx)%s\n",
+            threads, solver.directions().size(), setup, iterations, solve, 1e9 * solve / work,
+            1e9 * solve * threads / work, 1e9 * base / work, (solve * threads) / base,
+            1e9 * frontier / work, (solve * threads) / frontier,
+            sink + frontierSink == 42.0 ? " " : "");
     }
     return 0;
 }
