@@ -477,12 +477,11 @@ double
 RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
 {
     const auto t0 = std::chrono::steady_clock::now();
-    const bool rgb = mScene.isRgb();
-    const double residual = mImpl->wide
-        ? (rgb ? Engine<openvdb::Vec3d>::step(*this, interrupt)
-               : Engine<double>::step(*this, interrupt))
-        : (rgb ? Engine<openvdb::Vec3f>::step(*this, interrupt)
-               : Engine<float>::step(*this, interrupt));
+    double residual = 0.0;
+    mImpl->withState(mScene.isRgb(), [&](auto& st) {
+        using ValueT = typename decltype(st.B)::value_type;
+        residual = Engine<ValueT>::step(*this, interrupt);
+    });
     mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     mResiduals.push_back(residual);
     return residual;
