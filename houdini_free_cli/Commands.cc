@@ -789,6 +789,13 @@ runSolve(const Arguments& a)
     if (mc.samples < 1 || mc.samples > 1000000) {
         throw UsageError("--samples must be in [1, 1000000], got " + a.getString("samples"));
     }
+    const int gather = a.getInt("gather");
+    if (gather < 0 || gather > 1000000) {
+        throw UsageError("--gather must be in [0, 1000000], got " + a.getString("gather"));
+    }
+    if (gather > 0 && method != "montecarlo") {
+        throw UsageError("--gather applies only to --method montecarlo");
+    }
     const std::string update = a.getString("update");
     if (update == "jacobi") o.update = UpdateScheme::Jacobi;
     else if (update == "inplace") o.update = UpdateScheme::InPlace;
@@ -839,6 +846,12 @@ runSolve(const Arguments& a)
         MonteCarloSolver solver(scene, mc, &progress);
         progress.end();
         iterateWithProgress(solver, mc.maxIterations, progress);
+        if (gather > 0) {
+            const std::string what = "final gather, " + std::to_string(gather) + " rays per voxel";
+            progress.start(what.c_str());
+            solver.finalGather(gather, &progress);
+            progress.end();
+        }
         writeOutput(withGrids(file, solver.grids()), out);
         return 0;
     }
@@ -1182,7 +1195,11 @@ commands()
                     "(reference: cosine-weighted continuous rays; also writes radiosity_stderr; "
                     "ignores --directions, --lines, --update)"},
                 {"samples", OptionType::Int, "256", "4096",
-                    "rays per voxel for --method montecarlo"},
+                    "rays per voxel for --method montecarlo (stored: 4 bytes each)"},
+                {"gather", OptionType::Int, "0", "4096",
+                    "--method montecarlo: a final gather of this many fresh rays per voxel from "
+                    "the solved --samples pass (not stored: a low-noise reference in the memory "
+                    "of --samples; 256 samples are enough), 0 for none"},
                 {"lines", OptionType::String, "naive", "standard",
                     "digital lines: naive (26-connected) or standard (6-connected)"},
                 {"occlusion-depth", OptionType::Float, "1", "1.5",

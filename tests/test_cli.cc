@@ -536,6 +536,29 @@ TEST_F(CliTest, MonteCarloMethodWritesRadiosityAndItsStandardError)
     const Result bad = sh("vdbrad solve mc.vdb x.vdb --method montecarlo --samples 0");
     EXPECT_EQ(bad.status, 2);
     EXPECT_NE(bad.err.find("--samples must be in [1, 1000000]"), std::string::npos) << bad.err;
+
+    // --gather: the final gather of 256 fresh rays is as exact, and the metadata counts them.
+    const Result g = sh("vdbrad make furnace-box - --res 10 --albedo 0.5 --quiet | "
+                        "vdbrad solve - gathered.vdb --method montecarlo --samples 16 "
+                        "--tolerance 1e-7 --gather 256");
+    ASSERT_EQ(g.status, 0) << g.err;
+    EXPECT_NE(g.err.find("final gather"), std::string::npos) << g.err;
+    const VdbFile gathered = readVdbFile(path("gathered.vdb"));
+    auto gb = openvdb::GridBase::constGrid<openvdb::FloatGrid>(
+        findGrid(gathered.grids, "radiosity"));
+    auto ge = openvdb::GridBase::constGrid<openvdb::FloatGrid>(
+        findGrid(gathered.grids, "radiosity_stderr"));
+    ASSERT_TRUE(gb && ge);
+    for (auto it = gb->cbeginValueOn(); it; ++it) ASSERT_NEAR(*it, 2.f, 2e-4f);
+    for (auto it = ge->cbeginValueOn(); it; ++it) ASSERT_LT(*it, 2e-4f);
+    EXPECT_EQ(gb->metaValue<int32_t>("vdbrad:directions"), 256);
+    for (const char* wrong : {"--method montecarlo --gather -1", "--gather 64"}) {
+        const Result e = sh(std::string("vdbrad solve mc.vdb x.vdb ") + wrong);
+        EXPECT_EQ(e.status, 2) << wrong;
+        EXPECT_EQ(e.errLines().size(), 1u) << wrong << ": " << e.err;
+        EXPECT_NE(e.err.find("--gather"), std::string::npos) << wrong << ": " << e.err;
+        EXPECT_FALSE(exists(path("x.vdb"))) << wrong;
+    }
 }
 
 TEST_F(CliTest, CompareMeasuresTheDifferenceToAReference)

@@ -74,6 +74,31 @@ trace(const Scene& scene, Accessor& acc, const openvdb::CoordBBox& box, uint32_t
     return MonteCarloSolver::kSky;
 }
 
+// S cosine-distributed directions about a voxel's normal: stratified in sin^2(theta) (equal-flux
+// bands of a cosine lobe), a golden-ratio sequence in phi, offsets from the hash @a h.
+struct CosineRays
+{
+    CosineRays(const openvdb::Vec3f& normal, uint64_t h, size_t S)
+        : n(normal), h(h), phase(unit(h)), S(double(S))
+    {
+        const openvdb::Vec3d axis = std::abs(n[0]) < 0.6 ? openvdb::Vec3d(1, 0, 0)
+            : openvdb::Vec3d(0, 1, 0);
+        t1 = n.cross(axis).unitSafe();
+        t2 = n.cross(t1);
+    }
+    openvdb::Vec3d operator()(size_t s) const
+    {
+        const double u = (double(s) + unit(mix(h + 2 * s + 1))) / S;
+        const double v = std::fmod(phase + 0.6180339887498949 * double(s), 1.0);
+        const double sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
+        const double phi = 6.283185307179586 * v;   // 2 pi v
+        return (t1 * (sinT * std::cos(phi)) + t2 * (sinT * std::sin(phi)) + n * cosT).unitSafe();
+    }
+    openvdb::Vec3d n, t1, t2;
+    uint64_t h;
+    double phase, S;
+};
+
 template<typename ValueT> ValueT value(const Attribute& a, size_t i);
 template<> float value<float>(const Attribute& a, size_t i) { return a.grey(i); }
 template<> openvdb::Vec3f value<openvdb::Vec3f>(const Attribute& a, size_t i) { return a.rgb(i); }
@@ -109,22 +134,9 @@ MonteCarloSolver::MonteCarloSolver(const Scene& scene, const MonteCarloOptions& 
         if (cancelled) return;
         Accessor acc(scene.voxels().tree());
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            const openvdb::Vec3d nrm(scene.normal(i));
-            // An orthonormal frame about the normal.
-            const openvdb::Vec3d axis = std::abs(nrm[0]) < 0.6 ? openvdb::Vec3d(1, 0, 0)
-                : openvdb::Vec3d(0, 1, 0);
-            const openvdb::Vec3d t1 = nrm.cross(axis).unitSafe(), t2 = nrm.cross(t1);
-            const uint64_t h = mix(options.seed ^ mix(uint64_t(i)));
-            const double phase = unit(h);
+            const CosineRays rays(scene.normal(i), mix(options.seed ^ mix(uint64_t(i))), S);
             for (size_t s = 0; s < S; ++s) {
-                // Stratified in sin^2(theta) (equal-flux bands of a cosine lobe).
-                const double u = (double(s) + unit(mix(h + 2 * s + 1))) / double(S);
-                const double v = std::fmod(phase + 0.6180339887498949 * double(s), 1.0);
-                const double sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
-                const double phi = 6.283185307179586 * v;   // 2 pi v
-                const openvdb::Vec3d d = t1 * (sinT * std::cos(phi)) + t2 * (sinT * std::sin(phi))
-                    + nrm * cosT;
-                mHits[i * S + s] = trace(scene, acc, box, uint32_t(i), d.unitSafe());
+                mHits[i * S + s] = trace(scene, acc, box, uint32_t(i), rays(s));
             }
         }
         const size_t d = done += r.size();
@@ -213,6 +225,125 @@ MonteCarloSolver::iterate(openvdb::util::NullInterrupter* interrupt)
     return r;
 }
 
+template<typename ValueT>
+void
+MonteCarloSolver::gather(const std::vector<ValueT>& B, const std::vector<ValueT>& storedError,
+    const std::vector<size_t>& voxels, size_t perBatch, std::vector<ValueT>& value, std::vector<ValueT>& error,
+    openvdb::util::NullInterrupter* interrupt) const
+{
+    constexpr int channels = std::is_same<ValueT, float>::value ? 1 : 3;
+    constexpr int K = kGatherBatches;
+    value.assign(voxels.size(), ValueT(0.f));
+    error.assign(voxels.size(), ValueT(0.f));
+    const openvdb::CoordBBox box = mScene.voxels().bbox();
+    std::atomic<size_t> done{0};
+    std::atomic<bool> cancelled{false};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, voxels.size(), 1),
+        [&](const tbb::blocked_range<size_t>& r) {
+        if (cancelled) return;
+        Accessor acc(mScene.voxels().tree());
+        std::vector<uint32_t> hits;
+        for (size_t k = r.begin(); k != r.end(); ++k) {
+            const size_t i = voxels[k];
+            hits.clear();
+            size_t allUsed = 0;   // rays that count, over all batches
+            // Batch means; double sums (thousands of rays, values spread over decades).
+            double mean[K][3] = {};
+            for (int b = 0; b < K; ++b) {
+                // A hash stream of its own, disjoint from the stored rays' (gamma-offset seed).
+                const uint64_t h = mix(mix(mOptions.seed ^ 0x6A09E667F3BCC909ull) ^ mix(uint64_t(i))
+                    ^ mix(uint64_t(b) + 0xB7E151628AED2A6Bull));
+                const CosineRays rays(mScene.normal(i), h, perBatch);
+                double sum[3] = {};
+                size_t used = 0;
+                for (size_t s = 0; s < perBatch; ++s) {
+                    const uint32_t y = trace(mScene, acc, box, uint32_t(i), rays(s));
+                    if (y == kSky && mClosed[i]) continue;   // as iterate() does
+                    ++used;
+                    if (y >= kBack) continue;
+                    hits.push_back(y);
+                    for (int c = 0; c < channels; ++c) sum[c] += double(component(B[y], c));
+                }
+                for (int c = 0; c < channels; ++c) mean[b][c] = used ? sum[c] / double(used) : 0.0;
+                allUsed += used;
+            }
+            // The stored pass's noise is common to all batches, so their spread misses it:
+            // a voxel whose rays all land on one neighbour (tucked behind it on a staircase)
+            // inherits that neighbour's error whole. Its variance, counting each voxel hit m
+            // times of n rays as one error of weight m / n: sum (m / n)^2 err^2 (the stored
+            // pass's own, conservative, estimate).
+            std::sort(hits.begin(), hits.end());
+            double carried[3] = {};
+            const double n = double(allUsed);
+            for (size_t a = 0; a < hits.size();) {
+                size_t b = a;
+                while (b < hits.size() && hits[b] == hits[a]) ++b;
+                const double w = double(b - a) / std::max(n, 1.0);
+                for (int c = 0; c < channels; ++c) {
+                    const double err = component(storedError[hits[a]], c);
+                    carried[c] += w * w * err * err;
+                }
+                a = b;
+            }
+            const ValueT e = vdbrad::value<ValueT>(mScene.emission(), i);
+            const ValueT rho = vdbrad::value<ValueT>(mScene.albedo(), i);
+            for (int c = 0; c < channels; ++c) {
+                double m = 0.0, ss = 0.0;
+                for (int b = 0; b < K; ++b) m += mean[b][c];
+                m /= K;
+                for (int b = 0; b < K; ++b) ss += (mean[b][c] - m) * (mean[b][c] - m);
+                const double p = component(rho, c);
+                // The mean of K i.i.d. batch means: its variance is estimated without bias by
+                // the batches' sample variance / K.
+                setComponent(value[k], c, float(component(e, c) + p * m));
+                setComponent(error[k], c,
+                    float(p * std::sqrt(ss / double(K * (K - 1)) + carried[c])));
+            }
+        }
+        const size_t d = done += r.size();
+        if (interrupt && interrupt->wasInterrupted(int(100 * d / std::max<size_t>(voxels.size(), 1)))) {
+            cancelled = true;
+        }
+    });
+    if (cancelled) throw Cancelled("Monte Carlo final gather");
+}
+
+MonteCarloGather
+MonteCarloSolver::gather(const std::vector<size_t>& voxels, int rays,
+    openvdb::util::NullInterrupter* interrupt) const
+{
+    if (rays < 1) OPENVDB_THROW(openvdb::ValueError, "gather rays must be >= 1, got " << rays);
+    for (size_t i : voxels) {
+        if (i >= mScene.size()) {
+            OPENVDB_THROW(openvdb::ValueError, "gather voxel " << i << " out of range (scene has "
+                << mScene.size() << " voxels)");
+        }
+    }
+    const size_t perBatch = (size_t(rays) + kGatherBatches - 1) / kGatherBatches;
+    MonteCarloGather g;
+    if (mScene.isRgb()) gather(mRgb, mRgbError, voxels, perBatch, g.rgb, g.rgbError, interrupt);
+    else gather(mGrey, mGreyError, voxels, perBatch, g.grey, g.greyError, interrupt);
+    return g;
+}
+
+void
+MonteCarloSolver::finalGather(int rays, openvdb::util::NullInterrupter* interrupt)
+{
+    std::vector<size_t> all(mScene.size());
+    for (size_t i = 0; i < all.size(); ++i) all[i] = i;
+    const auto t0 = std::chrono::steady_clock::now();
+    MonteCarloGather g = gather(all, rays, interrupt);
+    if (mScene.isRgb()) {
+        mRgb.swap(g.rgb);
+        mRgbError.swap(g.rgbError);
+    } else {
+        mGrey.swap(g.grey);
+        mGreyError.swap(g.greyError);
+    }
+    mGathered = int((size_t(rays) + kGatherBatches - 1) / kGatherBatches * kGatherBatches);
+    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 bool
 MonteCarloSolver::converged() const
 {
@@ -229,7 +360,7 @@ openvdb::GridPtrVec
 MonteCarloSolver::grids() const
 {
     SolveStats stats;
-    stats.directions = mOptions.samples;
+    stats.directions = mGathered > 0 ? mGathered : mOptions.samples;
     stats.iterations = iterationCount();
     stats.residual = mResiduals.empty() ? 0.0 : mResiduals.back();
     stats.seconds = mSeconds;
