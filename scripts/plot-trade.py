@@ -69,8 +69,10 @@ fig.savefig(os.path.join(outdir, "trade-disk-error-vs-knobs.png"), dpi=110)
 
 # Cornell box against the Monte Carlo reference: error vs time per (resolution, lines).
 cornell = [r for r in rows if r["study"] == "cornell"]
+split = [r for r in rows if r["study"] == "cornell-split"]
 if cornell:
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    ax = axes[0]
     curves = defaultdict(list)
     for r in cornell:
         curves[(int(r["res"]), r["lines"])].append(r)
@@ -82,9 +84,22 @@ if cornell:
         ax.axhline(floor, color=ax.lines[-1].get_color(), linewidth=0.6, alpha=0.5)
     ax.set_xlabel("seconds (2 cores, to tolerance 1e-5)")
     ax.set_ylabel("mean |B - B_MC| / mean B")
-    ax.set_title("Cornell box vs Monte Carlo (thin lines: MC noise floor)", fontsize=10)
+    ax.set_title("Cornell box vs Monte Carlo (thin lines: MC noise)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
+    ax = axes[1]
+    kinds = defaultdict(list)
+    for r in split:
+        kinds[r["scene"]].append(r)
+    for kind, rs in sorted(kinds.items()):
+        rs.sort(key=lambda r: int(r["directions"]))
+        ax.loglog([int(r["directions"]) for r in rs], [float(r["mean_err"]) for r in rs], "-o",
+                  label=f"{kind} ({rs[0]['voxels']} of the 4096 sampled voxels)", markersize=4)
+    ax.set_xlabel("directions")
+    ax.set_ylabel("mean |B - B_MC| / mean B of the kind")
+    ax.set_title("res 64, naive lines: by kind of voxel", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(outdir, "trade-cornell-error-vs-time.png"), dpi=110)
 
