@@ -20,13 +20,16 @@ export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
 mkdir -p build-fuzz/artifacts build-fuzz/logs
 status=0
+# -timeout=120: above what the file guard (GridIO.cc runGuarded) may take on its own: a child
+# that hung on a lock copied by fork() is killed after 3 x its CPU budget + 15 s and retried once,
+# so a seed of 125 KB can take ~40 s there before it parses (a 10 s limit failed a CI run so).
 for name in $targets; do
   corpus=build-fuzz/corpus/$name
   log=build-fuzz/logs/$name.log
   mkdir -p "$corpus"
   echo "fuzz: $name for ${seconds} s (log: $log)"
   if VDBRAD_FUZZ_SEEDS=$corpus "build-fuzz/fuzz/$name" "$corpus" -max_total_time="$seconds" \
-      -timeout=10 -rss_limit_mb=2048 -artifact_prefix="build-fuzz/artifacts/$name-" \
+      -timeout=120 -rss_limit_mb=2048 -artifact_prefix="build-fuzz/artifacts/$name-" \
       -print_final_stats=1 "$@" >"$log" 2>&1; then
     grep -E "^(Done|stat::(number_of_executed_units|average_exec_per_sec|new_units_added))" \
       "$log" | sed "s/^/  /"
