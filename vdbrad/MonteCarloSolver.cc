@@ -308,6 +308,13 @@ MonteCarloSolver::gather(const std::vector<ValueT>& B, const std::vector<ValueT>
     if (cancelled) throw Cancelled("Monte Carlo final gather");
 }
 
+// Rays per batch of a gather of @a rays: rounded up, so that every batch has as many.
+size_t
+MonteCarloSolver::raysPerBatch(int rays)
+{
+    return (size_t(rays) + kGatherBatches - 1) / kGatherBatches;
+}
+
 MonteCarloGather
 MonteCarloSolver::gather(const std::vector<size_t>& voxels, int rays,
     openvdb::util::NullInterrupter* interrupt) const
@@ -319,7 +326,7 @@ MonteCarloSolver::gather(const std::vector<size_t>& voxels, int rays,
                 << mScene.size() << " voxels)");
         }
     }
-    const size_t perBatch = (size_t(rays) + kGatherBatches - 1) / kGatherBatches;
+    const size_t perBatch = raysPerBatch(rays);
     MonteCarloGather g;
     if (mScene.isRgb()) gather(mRgb, mRgbError, voxels, perBatch, g.rgb, g.rgbError, interrupt);
     else gather(mGrey, mGreyError, voxels, perBatch, g.grey, g.greyError, interrupt);
@@ -340,7 +347,7 @@ MonteCarloSolver::finalGather(int rays, openvdb::util::NullInterrupter* interrup
         mGrey.swap(g.grey);
         mGreyError.swap(g.greyError);
     }
-    mGathered = int((size_t(rays) + kGatherBatches - 1) / kGatherBatches * kGatherBatches);
+    mGathered = int(raysPerBatch(rays) * kGatherBatches);
     mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
