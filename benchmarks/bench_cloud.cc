@@ -12,6 +12,10 @@
 //                                plain, then with Anderson acceleration, in this process)
 //                                [taus=0.5,1,2,5,10,20,50] (total optical depths, comma-separated)
 //                                [iterations=5000] (sweeps cap)
+//                                [copies=none|auto|both] (CloudTransferOptions::minPeriod: none
+//                                solves the W-wide box as given, auto as the default copies
+//                                side by side, both each slab both ways, in this process, with
+//                                the time ratio auto / none)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -47,6 +51,10 @@ main(int argc, char** argv)
         at = comma + 1;
     }
     const int maxIterations = argc > 10 ? std::atoi(argv[10]) : 5000;
+    const std::string copies = argc > 11 ? argv[11] : "none";
+    std::vector<int> minPeriods;
+    if (copies != "auto") minPeriods.push_back(0);
+    if (copies != "none") minPeriods.push_back(-1);
     std::vector<vdbrad::Acceleration> modes;
     if (accelerate != "anderson") modes.push_back(vdbrad::Acceleration::None);
     if (accelerate != "none") modes.push_back(vdbrad::Acceleration::Anderson);
@@ -56,8 +64,8 @@ main(int argc, char** argv)
     }
     std::printf("periodic slab %d x %d x %d, HG g %.3f (order %d), omega0 %.3f, %d directions "
         "asked\n", width, layers, width, g, order, omega0, dirs);
-    std::printf("%8s %9s %10s %10s %8s %10s %10s %10s %10s %6s %8s %12s %12s\n", "tau", "accel",
-        "albedo", "exact",
+    std::printf("%8s %9s %7s %10s %10s %8s %10s %10s %10s %10s %6s %8s %12s %12s\n", "tau",
+        "accel", "copies", "albedo", "exact",
         "error", "transmit", "exact T", "absorb", "balance", "iters", "seconds", "ns/vox.dir",
         "to 1%: it/s");
     for (double tau : taus) {
@@ -90,7 +98,10 @@ main(int argc, char** argv)
             : vdbrad::test::addingDoublingSlab(problem);
         const double exact = reference.reflectance;
         for (const vdbrad::Acceleration mode : modes) {
+        double asGiven = 0.0;
+        for (const int minPeriod : minPeriods) {
         o.accelerate = mode;
+        o.minPeriod = minPeriod;
         const auto t0 = std::chrono::steady_clock::now();
         vdbrad::CloudTransfer transfer(cloud, o);
         // Iterate by hand to note when the albedo first comes (and stays) within 1% of exact.
@@ -121,12 +132,19 @@ main(int argc, char** argv)
                 vdbrad::test::deltaEddingtonAlbedo(tau, omega0, g, 1.0),
                 transfer.iterationCount(), s, within);
         }
-        std::printf("%8.1f %9s %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.5f %10.2e %6d %8.2f %12.1f "
-            "%12s\n", tau, vdbrad::toString(mode), b.albedo, exact,
+        const openvdb::Coord c = transfer.copies();
+        char tiles[32];
+        std::snprintf(tiles, sizeof tiles, "%dx%d", c.x(), c.z());
+        std::printf("%8.3g %9s %7s %10.5f %10.5f %7.2f%% %10.5f %10.5f %10.5f %10.2e %6d %8.2f "
+            "%12.1f %12s", tau, vdbrad::toString(mode), tiles, b.albedo, exact,
             100.0 * (b.albedo - exact) / exact, b.transmittance, reference.transmittance,
             b.absorptance, b.balance(), transfer.iterationCount(), s,
-            1e9 * s / (double(cloud.size()) * double(transfer.directions().size())
-                * transfer.iterationCount()), to1);
+            1e9 * s / (double(cloud.size()) * c.x() * c.y() * c.z()
+                * double(transfer.directions().size()) * transfer.iterationCount()), to1);
+        if (minPeriod == 0) asGiven = s;
+        else if (asGiven > 0.0) std::printf("  time %.1fx as given", s / asGiven);
+        std::printf("\n");
+        }
         }
     }
     if (csv) std::fclose(csv);

@@ -1021,6 +1021,21 @@ runSolveCloud(const Arguments& a)
     else if (up == "z") o.up = 2;
     else throw UsageError("--up must be x, y or z, got '" + up + "'");
     o.periodic = a.flag("periodic");
+    {
+        const std::string period = a.getString("min-period");
+        if (period != "auto") {
+            char* end = nullptr;
+            const long v = std::strtol(period.c_str(), &end, 10);
+            if (period.empty() || *end != '\0' || v < 0 || v > 4096) {
+                throw UsageError("--min-period must be auto or a voxel count in [0, 4096], got '"
+                    + period + "'");
+            }
+            o.minPeriod = int(v);
+        }
+        if (a.has("min-period") && !o.periodic) {
+            throw UsageError("--min-period applies to --periodic boxes only");
+        }
+    }
     const IterationLimits limits = iterationLimits(a);
     o.directions = limits.directions;
     o.maxIterations = limits.iterations;
@@ -1068,6 +1083,11 @@ runSolveCloud(const Arguments& a)
         std::cerr << memory << "cloud: " << withCommas(cloud.size()) << " voxels, "
                   << transfer.directions().size() << " directions (nearest to " << o.directions
                   << "), " << (o.periodic ? "periodic" : "open") << " boundaries"
+                  << (transfer.copies() != openvdb::Coord(1)
+                      ? " (solved as " + std::to_string(transfer.copies().x()) + " x "
+                          + std::to_string(transfer.copies().y()) + " x "
+                          + std::to_string(transfer.copies().z()) + " copies of the box)"
+                      : std::string())
                   << (o.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
                   << "\n";
     }
@@ -1221,6 +1241,11 @@ commands()
                 {"up", OptionType::String, "y", "z", "vertical axis: y (Houdini) or z (Blender)"},
                 {"periodic", OptionType::Flag, "", "",
                     "wrap light around the two horizontal axes (a tile of an infinite field)"},
+                {"min-period", OptionType::String, "auto", "0",
+                    "--periodic: solve a box narrower than this many voxels as copies side by "
+                    "side (light wrapping a narrow box rises by whole layers: thin slabs "
+                    "over-absorb); auto: sqrt(directions) / 2, fewer where the box is "
+                    "optically thick; 0: never"},
                 {"albedo", OptionType::Float, "1", "0.99",
                     "single-scattering albedo in [0, 1] where the file has no `albedo` grid"},
                 {"g", OptionType::Float, "0", "0.85",

@@ -483,6 +483,38 @@ TEST_F(CliTest, MemoryEstimateIsPrintedMatchesThePeakAndRefusesOverTheLimit)
     EXPECT_NE(bad.err.find("--max-memory"), std::string::npos) << bad.err;
 }
 
+TEST_F(CliTest, NarrowPeriodicCloudIsSolvedAsCopiesUnlessToldNot)
+{
+    // An 8-wide periodic slab with 303 directions (auto: 9 voxels at least) is solved as 2 x 2
+    // copies, said on stderr; the output has the input's voxels. --min-period 0 solves it as
+    // given; bad values, and --min-period without --periodic, are usage errors.
+    ASSERT_EQ(sh("vdbrad make slab s.vdb --res 8 --tau 0.02 --quiet").status, 0);
+    const Result tiled = sh("vdbrad solve-cloud s.vdb t.vdb --periodic --directions 300 "
+                            "--iterations 3");
+    ASSERT_EQ(tiled.status, 0) << tiled.err;
+    EXPECT_NE(tiled.err.find("solved as 2 x 1 x 2 copies of the box"), std::string::npos)
+        << tiled.err;
+    const Result plain = sh("vdbrad solve-cloud s.vdb p.vdb --periodic --directions 300 "
+                            "--iterations 3 --min-period 0");
+    ASSERT_EQ(plain.status, 0) << plain.err;
+    EXPECT_EQ(plain.err.find("copies"), std::string::npos) << plain.err;
+    for (const char* name : {"t.vdb", "p.vdb"}) {
+        const VdbFile f = readVdbFile(path(name));
+        EXPECT_EQ(findGrid(f.grids, "mean_intensity")->activeVoxelCount(),
+            findGrid(f.grids, "density")->activeVoxelCount()) << name;
+    }
+    EXPECT_FALSE(valueBits(path("t.vdb"), "mean_intensity")
+        == valueBits(path("p.vdb"), "mean_intensity"));
+    for (const char* bad : {"--periodic --min-period -1", "--periodic --min-period wide",
+             "--periodic --min-period 1e9", "--min-period 4"}) {
+        const Result r = sh(std::string("vdbrad solve-cloud s.vdb x.vdb ") + bad);
+        EXPECT_EQ(r.status, 2) << bad;
+        EXPECT_EQ(r.errLines().size(), 1u) << bad << ": " << r.err;
+        EXPECT_NE(r.err.find("--min-period"), std::string::npos) << r.err;
+        EXPECT_FALSE(exists(path("x.vdb"))) << bad;
+    }
+}
+
 TEST_F(CliTest, RayCastMethodGivesTheSweepsRadiosity)
 {
     // --method raycast runs the reference visibility; on the same lines it must write the same

@@ -190,6 +190,7 @@ TEST_F(CloudTest, ForwardScatteringSlabAgreesWithTheExactSolution)
     o.periodic = true;
     o.directions = 300;
     o.tolerance = 1e-6;
+    o.minPeriod = 0;   // the phase function's test: the narrow box as given (9x faster)
     o.phase = PhaseFunction::henyeyGreenstein(0.848);
     o.phaseOrder = 8;
     CloudTransfer transfer(cloud, o);
@@ -247,6 +248,7 @@ TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
         o.directions = 300;
         o.tolerance = 0.0;
         o.maxIterations = 60;
+        o.minPeriod = 0;   // the acceleration's test: the narrow box as given (16x faster)
         o.phase = PhaseFunction::henyeyGreenstein(g);
         test::SlabProblem problem;
         problem.tau = 50.0;
@@ -391,6 +393,97 @@ TEST_F(CloudTest, PlainSweepsConvergeOnOpaqueConservativeVoxels)
     for (float J : transfer.meanIntensity()) ASSERT_TRUE(std::isfinite(J) && J > 0.f);
 }
 
+// Issue 8, thin periodic slabs: a box narrower than CloudTransferOptions::minPeriod is solved
+// as copies side by side, which are the same medium: the narrow box gives exactly the budget of
+// the wide box built by hand, and each voxel the mean of its copies' intensities there.
+TEST_F(CloudTest, NarrowPeriodicBoxIsSolvedAsItsCopies)
+{
+    CloudTransferOptions o;
+    o.periodic = true;
+    o.sunZenith = 30.0;
+    o.sunAzimuth = 20.0;
+    o.directions = 111;   // auto: ceil(sqrt(111) / 2) = 6 voxels wide at least
+    o.tolerance = 1e-6;
+    o.accelerate = Acceleration::Anderson;
+    const Cloud narrow = slab(4, 20, 3, 0.02, 0.5f), wide = slab(8, 20, 6, 0.02, 0.5f);
+    CloudTransfer tiled(narrow, o);
+    EXPECT_EQ(tiled.copies(), openvdb::Coord(2, 1, 2));
+    o.minPeriod = 0;
+    CloudTransfer plain(wide, o);
+    EXPECT_EQ(plain.copies(), openvdb::Coord(1, 1, 1));
+    tiled.solve();
+    plain.solve();
+    EXPECT_EQ(tiled.iterationCount(), plain.iterationCount());
+    EXPECT_EQ(tiled.budget().albedo, plain.budget().albedo);
+    EXPECT_EQ(tiled.budget().transmittance, plain.budget().transmittance);
+    const std::vector<float> J = tiled.meanIntensity(), Jw = plain.meanIntensity();
+    ASSERT_EQ(J.size(), narrow.size());
+    for (size_t i = 0; i < J.size(); ++i) {
+        const openvdb::Coord c = narrow.voxels().coord(i);
+        double mean = 0.0;
+        for (int a = 0; a < 2; ++a) {
+            for (int b = 0; b < 2; ++b) {
+                const int32_t k = wide.voxels().find(c + openvdb::Coord(4 * a, 0, 3 * b));
+                ASSERT_GE(k, 0);
+                mean += 0.25 * double(Jw[size_t(k)]);
+            }
+        }
+        ASSERT_NEAR(J[i], mean, 1e-6 * mean) << c;
+    }
+    // Explicit widths: 5 voxels wide needs 2 copies along x only; a period wider than the
+    // minimum none; optically thick boxes fewer (8 mean optical depths per period at most).
+    o.minPeriod = 5;
+    EXPECT_EQ(CloudTransfer::periodicCopies(slab(4, 20, 5, 0.02, 0.5f), o),
+        openvdb::Coord(2, 1, 1));
+    o.minPeriod = -1;
+    o.directions = 967;   // auto: 16
+    EXPECT_EQ(CloudTransfer::periodicCopies(slab(4, 20, 4, 0.02, 0.5f), o),
+        openvdb::Coord(4, 1, 4));
+    EXPECT_EQ(CloudTransfer::periodicCopies(slab(4, 20, 4, 40.0, 0.5f), o),   // 2 per voxel
+        openvdb::Coord(1, 1, 1));
+    o.periodic = false;
+    EXPECT_EQ(CloudTransfer::periodicCopies(slab(4, 20, 4, 0.02, 0.5f), o),
+        openvdb::Coord(1, 1, 1));
+}
+
+// Issue 8, thin periodic slabs against the exact slab (adding-doubling): tau 2e-3 to 0.2,
+// omega0 0.5, 4 x 20 x 4 voxels, 303 directions. As given, the narrow box over-absorbs: light
+// wrapping around it rises by whole layers (CloudTransfer.h); measured albedo -5.8% / -4.7% /
+// -1.5%. Solved as 3 x 3 copies (the default): -3.1% / -2.4% / -1.1%, mostly what the exactly
+// horizontal directions, 6.4% of this set's solid angle, leave (they never leave a periodic
+// slab; 967 directions: -1.65% at tau 2e-3). Tolerance 3.5%, and the box as given must be worse
+// than 4.5% at the two thinnest depths (so that the test can fail).
+TEST_F(CloudTest, ThinPeriodicSlabsDoNotOverAbsorb)
+{
+    for (double tau : {2e-3, 0.02, 0.2}) {
+        const Cloud cloud = slab(4, 20, 4, tau, 0.5f);
+        test::SlabProblem problem;
+        problem.tau = tau;
+        problem.omega0 = 0.5;
+        const double exact = test::addingDoublingSlab(problem).reflectance;
+        double error[2] = {0.0, 0.0};
+        for (int minPeriod : {-1, 0}) {
+            CloudTransferOptions o;
+            o.periodic = true;
+            o.directions = 300;
+            o.tolerance = 1e-7;
+            o.accelerate = Acceleration::Anderson;
+            o.minPeriod = minPeriod;
+            CloudTransfer transfer(cloud, o);
+            transfer.solve();
+            EXPECT_TRUE(transfer.converged()) << tau;
+            EXPECT_NEAR(transfer.budget().balance(), 0.0, 1e-5) << tau;
+            error[minPeriod == 0] = transfer.budget().albedo / exact - 1.0;
+        }
+        std::printf("tau %g: albedo error %+.2f%% (as given %+.2f%%)\n", tau, 100 * error[0],
+            100 * error[1]);
+        EXPECT_LT(std::abs(error[0]), 0.035) << tau;
+        if (tau < 0.1) {
+            EXPECT_LT(error[1], -0.045) << tau;
+        }
+    }
+}
+
 // Issue 8, extremes: Henyey-Greenstein g from -0.99 (backward) to 0.99 (forward) against the
 // exact slab, tau = 2, omega0 = 0.9, 4 x 10 x 4 voxels, order 8 with delta-M. The reference is
 // adding-doubling where its quadrature holds (|g| <= 0.95) and the photon Monte Carlo (2e6
@@ -407,6 +500,7 @@ TEST_F(CloudTest, AsymmetryFromMinus099To099AgreesWithTheExactSlab)
         o.directions = g < -0.95 ? 1000 : 300;
         o.tolerance = 1e-7;
         o.maxIterations = 600;
+        o.minPeriod = 0;   // the phase function's test: the narrow box as given (9-16x faster)
         o.accelerate = Acceleration::Anderson;
         o.phase = PhaseFunction::henyeyGreenstein(g);
         CloudTransfer transfer(cloud, o);

@@ -71,4 +71,48 @@ buildCloud(const openvdb::GridPtrVec& grids, const CloudOptions& options,
         std::move(albedo), density.getName());
 }
 
+Cloud
+tileCloud(const Cloud& cloud, const openvdb::Coord& copies, std::vector<uint32_t>* source)
+{
+    const VoxelIndex& voxels = cloud.voxels();
+    const openvdb::CoordBBox box = voxels.bbox();
+    const openvdb::Coord dim = box.dim();
+    VoxelIndex::checkVoxelCount(uint64_t(voxels.size()) * uint64_t(copies.x())
+        * uint64_t(copies.y()) * uint64_t(copies.z()));
+    openvdb::MaskTree mask;
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> acc(mask);
+    for (int a = 0; a < copies.x(); ++a) {
+        for (int b = 0; b < copies.y(); ++b) {
+            for (int c = 0; c < copies.z(); ++c) {
+                const openvdb::Coord shift(a * dim.x(), b * dim.y(), c * dim.z());
+                for (const openvdb::Coord& ijk : voxels.coords()) acc.setValueOn(ijk + shift);
+            }
+        }
+    }
+    VoxelIndex tiled(mask);
+    std::vector<uint32_t> from(tiled.size());
+    for (size_t i = 0; i < tiled.size(); ++i) {
+        const openvdb::Coord d = tiled.coord(i) - box.min();
+        const openvdb::Coord ijk = box.min()
+            + openvdb::Coord(d.x() % dim.x(), d.y() % dim.y(), d.z() % dim.z());
+        from[i] = uint32_t(voxels.find(ijk));
+    }
+    std::vector<float> extinction(tiled.size());
+    for (size_t i = 0; i < tiled.size(); ++i) extinction[i] = cloud.extinction(from[i]);
+    const Attribute& a = cloud.albedo();
+    Attribute albedo(a.uniformValue());
+    if (a.isRgb()) {
+        std::vector<openvdb::Vec3f> v(tiled.size());
+        for (size_t i = 0; i < v.size(); ++i) v[i] = a.rgb(from[i]);
+        albedo = Attribute::fromRgb(std::move(v));
+    } else if (!a.isUniform()) {
+        std::vector<float> v(tiled.size());
+        for (size_t i = 0; i < v.size(); ++i) v[i] = a.grey(from[i]);
+        albedo = Attribute::fromGrey(std::move(v));
+    }
+    if (source) *source = std::move(from);
+    return Cloud(cloud.transform().copy(), std::move(tiled), std::move(extinction),
+        std::move(albedo), cloud.densityName());
+}
+
 } // namespace vdbrad

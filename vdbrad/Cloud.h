@@ -61,4 +61,11 @@ private:
 Cloud buildCloud(const openvdb::GridPtrVec& grids, const CloudOptions& options = CloudOptions(),
     openvdb::util::NullInterrupter* interrupt = nullptr);
 
+/// @brief @a cloud repeated copies[k] times along each index axis k, the copies side by side at
+/// the period of its bounding box (so a periodic box and its tiling are the same medium).
+/// @param source  if not null, set to the voxel of @a cloud that each voxel of the result copies
+/// @throw openvdb::ValueError if the result has too many voxels (VoxelIndex)
+Cloud tileCloud(const Cloud& cloud, const openvdb::Coord& copies,
+    std::vector<uint32_t>* source = nullptr);
+
 } // namespace vdbrad

@@ -99,6 +99,10 @@ struct CloudTransfer::Impl
     static constexpr int kGroups = 8;   // fixed: results do not depend on the thread count
 
     size_t n = 0;
+    // A narrow periodic box is solved as copies side by side (periodicCopies()): that medium,
+    // and per voxel of it, the voxel of the given cloud it copies. Null: the cloud as given.
+    std::unique_ptr<Cloud> tiled;
+    std::vector<uint32_t> copyOf;
     std::vector<float> kappa;        // optical depth per voxel length
     std::vector<float> omega;        // single-scattering albedo
     std::vector<float> beamJ;        // mean radiance of the direct beam, D / (4 pi kappa)
@@ -247,9 +251,9 @@ struct CloudTransfer::Impl
     }
 };
 
-CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& options,
+CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt)
-    : mCloud(cloud), mOptions(options), mImpl(new Impl)
+    : mCloud(given), mOptions(options), mImpl(new Impl)
 {
     const auto start = std::chrono::steady_clock::now();
     if (options.maxIterations < 1) {
@@ -268,12 +272,20 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
         OPENVDB_THROW(openvdb::ValueError, "Anderson depth must be >= 1, got "
             << options.andersonDepth);
     }
-    if (cloud.albedo().isRgb()) {
+    if (options.minPeriod < -1) {
+        OPENVDB_THROW(openvdb::ValueError, "minimum period must be >= 0 voxels (or -1: auto), got "
+            << options.minPeriod);
+    }
+    if (given.albedo().isRgb()) {
         OPENVDB_THROW(openvdb::ValueError, "RGB single-scattering albedo is not supported yet; "
             "give a float albedo grid");
     }
     mDirections = DirectionSet::fromCount(options.directions);
     Impl& impl = *mImpl;
+    mCopies = periodicCopies(given, options);
+    if (mCopies != Coord(1)) impl.tiled.reset(new Cloud(tileCloud(given, mCopies, &impl.copyOf)));
+    // From here on, the medium solved.
+    const Cloud& cloud = impl.tiled ? *impl.tiled : given;
     const size_t n = impl.n = cloud.size();
     const double h = cloud.voxelSize();
     impl.kappa.resize(n);
@@ -476,6 +488,30 @@ CloudTransfer::CloudTransfer(const Cloud& cloud, const CloudTransferOptions& opt
 }
 
 CloudTransfer::~CloudTransfer() = default;
+
+Coord
+CloudTransfer::periodicCopies(const Cloud& cloud, const CloudTransferOptions& options)
+{
+    Coord copies(1);
+    if (!options.periodic || options.minPeriod == 0 || cloud.size() == 0) return copies;
+    const size_t dirs = DirectionSet::fromCount(options.directions).size();
+    const int width = options.minPeriod > 0 ? options.minPeriod
+        : int(std::ceil(0.5 * std::sqrt(double(dirs))));
+    const Coord dim = cloud.voxels().bbox().dim();
+    // Mean optical depth per voxel of the box (empty cells count as clear air).
+    double depth = 0.0;
+    for (float e : cloud.extinctionArray()) depth += double(e);
+    depth *= cloud.voxelSize() / (double(dim.x()) * double(dim.y()) * double(dim.z()));
+    for (int k = 0; k < 3; ++k) {
+        if (k == options.up || dim[k] >= width) continue;
+        int c = (width + dim[k] - 1) / dim[k];
+        if (options.minPeriod < 0 && depth > 0.0) {
+            c = int(std::min<double>(c, std::max(1.0, std::ceil(8.0 / (depth * dim[k])))));
+        }
+        copies[k] = c;
+    }
+    return copies;
+}
 
 bool
 CloudTransfer::converged() const
@@ -767,7 +803,9 @@ size_t
 CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& options,
     int threads)
 {
-    const size_t n = cloud.size(), t = size_t(std::max(threads, 1));
+    const Coord copies = periodicCopies(cloud, options);
+    const size_t tiles = size_t(copies.x()) * size_t(copies.y()) * size_t(copies.z());
+    const size_t n = cloud.size() * tiles, t = size_t(std::max(threads, 1));
     const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
     const size_t M = size_t(order + 1) * size_t(order + 1);
     size_t perVoxel = 4 + 4 + 4 + 8 + 4;            // kappa, omega, beam J, deposit, diffuse J
@@ -780,11 +818,13 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     if (options.accelerate == Acceleration::Anderson) {
         perVoxel += 8 * M + AndersonMixer::bytes(M, options.andersonDepth);   // + x, G(x)
     }
+    // The copies of a narrow periodic box: coordinates, extinction, the copy's source, index.
+    if (tiles > 1) perVoxel += 12 + 4 + 4 + 8;
     size_t bytes = n * perVoxel;
     if (options.periodic) {
         // Light carried across the side faces: per direction, sense, face and layer, twice.
         const openvdb::CoordBBox box = cloud.voxels().bbox();
-        const size_t layers = size_t(box.dim()[options.up]);
+        const size_t layers = size_t(box.dim()[options.up]);   // copies stack sideways only
         const size_t dirs = DirectionSet::fromCount(options.directions).size();
         const size_t faces = dirs * 2 * 6 * layers;
         bytes += faces * (8 + 8 + 4);
@@ -807,9 +847,9 @@ CloudTransfer::fingerprint() const
     h = hashBytes(impl.deposited.data(), impl.deposited.size() * sizeof(double), h);
     h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
     h = hashBytes(impl.beamTable.data(), impl.beamTable.size() * sizeof(float), h);
-    const int64_t options[7] = {int64_t(mDirections.size()), mOptions.periodic ? 1 : 0,
+    const int64_t options[10] = {int64_t(mDirections.size()), mOptions.periodic ? 1 : 0,
         mOptions.phaseOrder, int64_t(mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
-        impl.M};
+        impl.M, mCopies.x(), mCopies.y(), mCopies.z()};
     return hashBytes(options, sizeof options, h);
 }
 
@@ -848,11 +888,22 @@ CloudTransfer::restoreState(const SolverState& state)
 std::vector<float>
 CloudTransfer::meanIntensity() const
 {
-    std::vector<float> J(mImpl->n);
-    const double scale = mImpl->outputScale;
-    for (size_t i = 0; i < J.size(); ++i) {
-        J[i] = float(double(mImpl->diffuseJ[i] + mImpl->beamJ[i]) * scale);
+    const Impl& impl = *mImpl;
+    const double scale = impl.outputScale;
+    std::vector<float> J(mCloud.size());
+    if (!impl.tiled) {
+        for (size_t i = 0; i < J.size(); ++i) {
+            J[i] = float(double(impl.diffuseJ[i] + impl.beamJ[i]) * scale);
+        }
+        return J;
     }
+    // The mean over a voxel's copies (every voxel has the same number of them).
+    std::vector<double> sum(J.size(), 0.0);
+    for (size_t i = 0; i < impl.n; ++i) {
+        sum[impl.copyOf[i]] += double(impl.diffuseJ[i] + impl.beamJ[i]);
+    }
+    const double per = scale / double(impl.n / J.size());
+    for (size_t i = 0; i < J.size(); ++i) J[i] = float(sum[i] * per);
     return J;
 }
 

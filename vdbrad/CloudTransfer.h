@@ -42,6 +42,17 @@
 // voxel centre projected along the direction, which sits up to half a voxel off the line's axis
 // and, along steep directions, moved the light several layers per wrap: -7.5% slab albedo).
 //
+// Narrow periodic boxes are solved as several copies side by side (CloudTransferOptions::
+// minPeriod): the re-entry above matches light to the lines of its layer, and all lines of a
+// direction entering one layer of a face have the same phase (a naive line's pattern repeats), so
+// a near-horizontal direction rises by a whole number of layers per wrap instead of its true
+// fraction, and light on directions that round to no rise is trapped until it interacts. The
+// smaller the rise per wrap (narrow box, fine direction set) the more directions that catches:
+// a thin slab 4 voxels wide over-absorbs (tau 2e-3, omega0 0.5, 967 directions: albedo -5.9%),
+// the same slab 16 wide is within -1.65%, the floor the exactly horizontal directions leave
+// (BENCHMARKS.md). The copies are the same medium (a period of the box is one of the tiling), so
+// the result is the mean over them, and the budget is unchanged by construction.
+//
 // Anisotropic scattering (PhaseFunction.h): the sweeps accumulate the radiance's spherical-
 // harmonic moments I_lm up to order K instead of J alone, and a voxel's source in direction s is
 // S(s) = alpha omega0' sum_l chi_l' sum_m I_lm Y_lm(s), delta-M scaled; alpha rescales it so that
@@ -81,6 +92,11 @@ struct CloudTransferOptions
     int up = 1;
     /// Periodic across the two horizontal axes (see the file comment).
     bool periodic = false;
+    /// Periodic boxes narrower than this many voxels along a horizontal axis are solved as
+    /// copies side by side until they are at least this wide (see the file comment). -1 (auto):
+    /// ceil(sqrt(directions) / 2), and no more copies than make one period 8 mean optical
+    /// depths wide (light crossing it horizontally is then gone); 0: never.
+    int minPeriod = -1;
     /// Solar-beam rays per voxel along each axis of the beam's cross-section.
     int beamRaysPerVoxel = 2;
     /// Scattering phase function (PhaseFunction.h); isotropic by default.
@@ -127,6 +143,11 @@ public:
     int iterationCount() const { return int(mResiduals.size()); }
     const std::vector<double>& residuals() const { return mResiduals; }
     const DirectionSet& directions() const { return mDirections; }
+    /// Copies of the box solved side by side along each index axis (1, 1, 1 unless periodic
+    /// and narrow: see CloudTransferOptions::minPeriod).
+    const openvdb::Coord& copies() const { return mCopies; }
+    /// @brief The copies a transfer of @a cloud with @a options solves (see copies()).
+    static openvdb::Coord periodicCopies(const Cloud& cloud, const CloudTransferOptions& options);
 
     /// @brief Peak bytes a transfer of @a cloud with @a options allocates (not counting the
     /// cloud), from the sizes of its arrays; @a threads: the worker threads that will run it.
@@ -156,6 +177,7 @@ private:
     const Cloud& mCloud;
     CloudTransferOptions mOptions;
     DirectionSet mDirections;
+    openvdb::Coord mCopies{1, 1, 1};
     std::unique_ptr<Impl> mImpl;
     std::vector<double> mResiduals;
     CloudBudget mBudget;
