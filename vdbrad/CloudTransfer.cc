@@ -604,6 +604,22 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                     const float beamT[2] = {impl.beamTable[2 * d], impl.beamTable[2 * d + 1]};
                     const float* yAcc[2] = {&impl.yAccumulate[2 * d * M],
                         &impl.yAccumulate[(2 * d + 1) * M]};
+                    // Exactly horizontal directions in a periodic box (see the file comment):
+                    // the rise per wrap, in layers, of either half of the direction's cell.
+                    double rise = 0.0;
+                    if (periodic && unit[up] == 0.0) {
+                        const int a1 = (up + 1) % 3, a2 = (up + 2) % 3;
+                        const double w1 = impl.boxMax[a1] - impl.boxMin[a1] + 1;
+                        const double w2 = impl.boxMax[a2] - impl.boxMin[a2] + 1;
+                        // Mean chord of the box's cross-section along the direction: its area
+                        // over its width seen from the direction.
+                        const double chord = w1 * w2
+                            / (w1 * std::abs(unit[a2]) + w2 * std::abs(unit[a1]));
+                        // The cell spans elevations up to beta = sqrt(Omega) / 2 either way;
+                        // its half's mean slope is tan(beta / 2).
+                        const double beta = 0.5 * std::sqrt(kPi * mDirections.factor(d));
+                        rise = chord * std::tan(0.5 * beta);
+                    }
                     auto pass = [&](bool sources) {
                         std::fill(exits.begin(), exits.end(), 0.0);
                         pattern.sweep->walk(sigma, impl.reversed[d] != 0, lanes,
@@ -667,35 +683,70 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                     }
                                 }
                             });
-                        if (!periodic) return 0.0;
-                        // What left a side face enters through the opposite one at the same
-                        // height, unless no line enters there: then it has left for good.
+                    };
+                    // What left a side face (exits, times share) enters through the opposite
+                    // one at the same height, unless no line enters there: then it has left for
+                    // good. Light of a horizontal direction's upper (drift 1) or lower (-1) half
+                    // cell enters `rise` layers higher or lower, split between the two nearest
+                    // layers; above the top or below the bottom it has left. Returns the power
+                    // that wraps.
+                    auto wrapAround = [&](double share, int drift, std::vector<double>& into) {
                         double transit = 0.0;
-                        std::fill(entry.begin(), entry.end(), 0.0);
+                        const double shift = drift * rise, whole = std::floor(shift);
+                        const double part[2] = {1.0 - (shift - whole), shift - whole};
                         for (size_t e = 0; e < sliceSize; ++e) {
                             if (exits[e] == 0.0) continue;
                             const size_t to = impl.oppositeSlot(e);
-                            if (impl.enterCount[slice + to] > 0) {
-                                entry[to] += exits[e];
-                                transit += exits[e];
-                            } else {
-                                const double tUp = e < sliceSize / 2 ? unit[up] : -unit[up];
-                                escaped[size_t(g)][tUp > 0.0 ? 1 : 0] += exits[e];
+                            const int layer = int(to % size_t(impl.layers));
+                            for (int k = 0; k < 2; ++k) {
+                                const double p = share * exits[e] * part[k];
+                                if (p == 0.0) continue;
+                                const int at = layer + int(whole) + k;
+                                const size_t slot = to - size_t(layer) + size_t(at);
+                                if (at >= 0 && at < impl.layers
+                                    && impl.enterCount[slice + slot] > 0) {
+                                    into[slot] += p;
+                                    transit += p;
+                                } else {
+                                    const double tUp = drift != 0 ? double(drift)
+                                        : e < sliceSize / 2 ? unit[up] : -unit[up];
+                                    escaped[size_t(g)][tUp > 0.0 ? 1 : 0] += p;
+                                }
                             }
                         }
                         return transit;
                     };
                     // First the sources and the light carried over from the last iteration;
                     // then the light wrapping around the period is followed at once, pass after
-                    // pass, until what still wraps is negligible; the rest is carried over.
-                    double transit = pass(true);
-                    const double first = transit;
-                    for (int wrap = 0; periodic && wrap < kMaxWraps
-                         && transit > 1e-9 * first && transit > 0.0; ++wrap) {
-                        transit = pass(false);
-                    }
+                    // pass, until what still wraps is negligible; the rest is carried over. A
+                    // horizontal direction's two half cells wrap separately, so that each keeps
+                    // drifting its own way.
+                    pass(true);
                     if (periodic) {
-                        std::copy(entry.begin(), entry.end(), leftNow.begin() + long(slice));
+                        const int halves = rise > 0.0 ? 2 : 1;
+                        std::array<std::vector<double>, 2> wrapping;
+                        std::array<double, 2> transit{0.0, 0.0};
+                        for (int h = 0; h < halves; ++h) {
+                            wrapping[size_t(h)].assign(sliceSize, 0.0);
+                            transit[size_t(h)] = wrapAround(1.0 / halves,
+                                halves == 1 ? 0 : 1 - 2 * h, wrapping[size_t(h)]);
+                        }
+                        const double first = transit[0] + transit[1];
+                        for (int h = 0; h < halves; ++h) {
+                            for (int wrap = 0; wrap < kMaxWraps
+                                 && transit[size_t(h)] > 1e-9 * first; ++wrap) {
+                                entry.swap(wrapping[size_t(h)]);
+                                pass(false);
+                                std::fill(wrapping[size_t(h)].begin(), wrapping[size_t(h)].end(),
+                                    0.0);
+                                transit[size_t(h)] = wrapAround(1.0,
+                                    halves == 1 ? 0 : 1 - 2 * h, wrapping[size_t(h)]);
+                            }
+                        }
+                        for (size_t e = 0; e < sliceSize; ++e) {
+                            leftNow[slice + e] = wrapping[0][e]
+                                + (halves == 2 ? wrapping[1][e] : 0.0);
+                        }
                     }
                     const size_t k = ++done;
                     if (interrupt && interrupt->wasInterrupted(int(100 * k / dirs))) {
