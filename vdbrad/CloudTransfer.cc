@@ -282,7 +282,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     }
     mDirections = DirectionSet::fromCount(options.directions);
     Impl& impl = *mImpl;
-    mCopies = periodicCopies(given, options);
+    mCopies = copiesFor(given, options, mDirections.size());
     if (mCopies != Coord(1)) impl.tiled.reset(new Cloud(tileCloud(given, mCopies, &impl.copyOf)));
     // From here on, the medium solved.
     const Cloud& cloud = impl.tiled ? *impl.tiled : given;
@@ -492,9 +492,15 @@ CloudTransfer::~CloudTransfer() = default;
 Coord
 CloudTransfer::periodicCopies(const Cloud& cloud, const CloudTransferOptions& options)
 {
+    if (!options.periodic || options.minPeriod == 0) return Coord(1);
+    return copiesFor(cloud, options, DirectionSet::fromCount(options.directions).size());
+}
+
+Coord
+CloudTransfer::copiesFor(const Cloud& cloud, const CloudTransferOptions& options, size_t dirs)
+{
     Coord copies(1);
     if (!options.periodic || options.minPeriod == 0 || cloud.size() == 0) return copies;
-    const size_t dirs = DirectionSet::fromCount(options.directions).size();
     const int width = options.minPeriod > 0 ? options.minPeriod
         : int(std::ceil(0.5 * std::sqrt(double(dirs))));
     const Coord dim = cloud.voxels().bbox().dim();
@@ -724,12 +730,13 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                     pass(true);
                     if (periodic) {
                         const int halves = rise > 0.0 ? 2 : 1;
+                        const int drift[2] = {halves == 1 ? 0 : 1, -1};   // per half
                         std::array<std::vector<double>, 2> wrapping;
                         std::array<double, 2> transit{0.0, 0.0};
                         for (int h = 0; h < halves; ++h) {
                             wrapping[size_t(h)].assign(sliceSize, 0.0);
-                            transit[size_t(h)] = wrapAround(1.0 / halves,
-                                halves == 1 ? 0 : 1 - 2 * h, wrapping[size_t(h)]);
+                            transit[size_t(h)] = wrapAround(1.0 / halves, drift[h],
+                                wrapping[size_t(h)]);
                         }
                         const double first = transit[0] + transit[1];
                         for (int h = 0; h < halves; ++h) {
@@ -739,8 +746,8 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                 pass(false);
                                 std::fill(wrapping[size_t(h)].begin(), wrapping[size_t(h)].end(),
                                     0.0);
-                                transit[size_t(h)] = wrapAround(1.0,
-                                    halves == 1 ? 0 : 1 - 2 * h, wrapping[size_t(h)]);
+                                transit[size_t(h)] = wrapAround(1.0, drift[h],
+                                    wrapping[size_t(h)]);
                             }
                         }
                         for (size_t e = 0; e < sliceSize; ++e) {

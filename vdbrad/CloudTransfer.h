@@ -181,6 +181,9 @@ public:
 
 private:
     struct Impl;
+    /// periodicCopies() for a direction set of @a directions pairs.
+    static openvdb::Coord copiesFor(const Cloud& cloud, const CloudTransferOptions& options,
+        size_t directions);
     const Cloud& mCloud;
     CloudTransferOptions mOptions;
     DirectionSet mDirections;
