@@ -254,6 +254,7 @@ public:
     public:
         /// @throw openvdb::ValueError if @a partition is not centred (centreOn())
         BoxKeys(const LinePartition& partition, const openvdb::math::CoordBBox& box)
+            : mBox(box)
         {
             if (!partition.mCentred) {
                 OPENVDB_THROW(openvdb::ValueError, "BoxKeys needs a centred LinePartition");
@@ -269,6 +270,14 @@ public:
         {
             return LineKey{index(mI, xyz), index(mJ, xyz)};
         }
+
+        /// @brief The dense slots (key.i - i0) * nj + (key.j - j0) of @a n voxels of the box,
+        /// written to @a out (what a sweep needs per voxel and direction), in 32-bit vector
+        /// arithmetic: several voxels per instruction where the CPU has AVX2 or AVX-512.
+        /// @return false, writing nothing, where the box's form values or the slots do not fit
+        /// that arithmetic (boxes of many thousand voxels a side); then use key().
+        bool slots(const openvdb::math::Coord* xyz, size_t n, int64_t i0, int64_t j0, int64_t nj,
+            uint32_t* out) const;
 
     private:
         struct Form
@@ -316,6 +325,7 @@ public:
         }
 
         Form mI, mJ;
+        openvdb::math::CoordBBox mBox;
         bool mValid = false;
     };
 

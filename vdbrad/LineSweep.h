@@ -100,13 +100,14 @@ public:
     template<typename StateT>
     struct Lanes
     {
-        std::vector<uint32_t> slots;     // line slot of the k-th visited voxel (pass 1 -> pass 2)
+        std::vector<uint32_t> slots;     // line slot of each voxel, by position in the order
         // Bubbles (standard lines): pairs (k, k') of consecutive voxels of one line met in the
         // wrong order (k < k' in visiting order, k' first along the line), sorted by k' and by k.
         std::vector<std::pair<uint32_t, uint32_t>> bubblesByLater, bubblesByEarlier;
         std::vector<uint32_t> lastOnLine;                    // scratch for finding them
         std::vector<StateT> fronts;
         std::unordered_map<LineKey, uint32_t, LineKeyHash> ids;   // sparse scenes only
+        std::vector<float> facing;       // sigma . n of each voxel, by position (sweep())
     };
     template<typename PayloadT>
     using Workspace = Lanes<Front<PayloadT>>;
@@ -143,14 +144,15 @@ public:
                             if ((forward ? b.first : b.second) == k) { ++skip; continue; }
                         }
                     }
-                    step(along(k), work.fronts[work.slots[k]], forward);
+                    const uint32_t x = along(k);
+                    step(x, work.fronts[work.slots[x]], forward);
                     if constexpr (decltype(repair)::value) {
                         if (replay < replays.size()) {
                             const auto& b = nth(replays, replay);
                             if ((forward ? b.second : b.first) == k) {
                                 ++replay;
-                                const uint32_t held = forward ? b.first : b.second;
-                                step(along(held), work.fronts[work.slots[held]], forward);
+                                const uint32_t held = along(forward ? b.first : b.second);
+                                step(held, work.fronts[work.slots[held]], forward);
                             }
                         }
                     }
@@ -174,11 +176,11 @@ public:
     void sweep(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work,
         LoadT&& load, VisitT&& visit) const
     {
-        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
+        facing(sigma, work.facing);
         walk(sigma, reversed, work,
             [&](uint32_t x, Front<PayloadT>& front, bool forward) {
                 const float travel = forward ? 1.f : -1.f;
-                this->step(x, front, s * travel, travel, load, visit);
+                this->step(x, front, work.facing[x] * travel, travel, load, visit);
             },
             [](const std::vector<Front<PayloadT>>&, bool) {});
     }
@@ -200,9 +202,12 @@ public:
         listed.resize(n);
         {
             std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
-            for (size_t k = 0; k < n; ++k) listed[fill[work.slots[k]]++] = along(k);
+            for (size_t k = 0; k < n; ++k) {
+                const uint32_t x = along(k);
+                listed[fill[work.slots[x]]++] = x;
+            }
         }
-        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
+        facing(sigma, work.facing);
         if (mLines == LineType::Standard) {
             // The exact line order, bubbles included (the counting sort kept the visiting order).
             const LinePartition partition(sigma, mLines);
@@ -216,10 +221,10 @@ public:
         for (size_t l = 0; l < lines; ++l) {
             Front<PayloadT> forward, backward;
             for (uint32_t e = starts[l]; e < starts[l + 1]; ++e) {
-                step(listed[e], forward, s, 1.f, load, visit);
+                step(listed[e], forward, work.facing[listed[e]], 1.f, load, visit);
             }
             for (uint32_t e = starts[l + 1]; e > starts[l]; --e) {
-                step(listed[e - 1], backward, -s, -1.f, load, visit);
+                step(listed[e - 1], backward, -work.facing[listed[e - 1]], -1.f, load, visit);
             }
         }
     }
@@ -227,7 +232,11 @@ public:
 private:
     static constexpr uint32_t kSender = 0x80000000u;   // positions are < 2^31 (VoxelIndex)
 
-    /// Fill work.slots (the line of the k-th voxel along +sigma) and return the number of lines.
+    /// facing[x] = sigma . n_x for every position x, in vector lanes (LineSweep.cc). The
+    /// backward pass's -facing[x] is (-sigma) . n_x bit for bit: negation commutes with rounding.
+    void facing(const openvdb::Coord& sigma, std::vector<float>& facing) const;
+
+    /// Fill work.slots (the line of the voxel at each position) and return the number of lines.
     template<typename StateT>
     size_t assignLines(const openvdb::Coord& sigma, bool reversed, Lanes<StateT>& work) const
     {
@@ -253,27 +262,36 @@ private:
         size_t lines = 0;
         // Position of the k-th voxel along +sigma.
         auto along = [&](size_t k) { return uint32_t(reversed ? n - 1 - k : k); };
+        const bool isDense = dense <= 4.0 * double(n) + 65536.0 && dense < 4294967296.0;
+        const int64_t nj = j1 - j0 + 1;
         auto fill = [&](auto&& keyOf) {
-            if (dense <= 4.0 * double(n) + 65536.0) {
-                const int64_t nj = j1 - j0 + 1;
+            if (isDense) {
                 lines = size_t(dense);
-                for (size_t k = 0; k < n; ++k) {
-                    const LineKey key = keyOf(mCoords[along(k)]);
-                    work.slots[k] = uint32_t((key.i - i0) * nj + (key.j - j0));
+                for (size_t x = 0; x < n; ++x) {
+                    const LineKey key = keyOf(mCoords[x]);
+                    work.slots[x] = uint32_t((key.i - i0) * nj + (key.j - j0));
                 }
             } else {
+                // Numbered in visiting order (any numbering would do; this one is reproducible).
                 work.ids.clear();
                 for (size_t k = 0; k < n; ++k) {
-                    const LineKey key = keyOf(mCoords[along(k)]);
-                    work.slots[k] = work.ids.emplace(key, uint32_t(work.ids.size())).first->second;
+                    const uint32_t x = along(k);
+                    const LineKey key = keyOf(mCoords[x]);
+                    work.slots[x] = work.ids.emplace(key, uint32_t(work.ids.size())).first->second;
                 }
                 lines = work.ids.size();
             }
         };
-        // Division-free keys (the hottest arithmetic of a sweep) wherever the box allows them.
+        // Division-free keys (the hottest arithmetic of a sweep) wherever the box allows them,
+        // vectorised where it is small enough for 32-bit lanes.
         const LinePartition::BoxKeys boxKeys(partition, openvdb::CoordBBox(mMin, mMax));
-        if (boxKeys.valid()) fill([&](const openvdb::Coord& c) { return boxKeys.key(c); });
-        else fill([&](const openvdb::Coord& c) { return partition.key(c); });
+        if (isDense && boxKeys.slots(mCoords.data(), n, i0, j0, nj, work.slots.data())) {
+            lines = size_t(dense);
+        } else if (boxKeys.valid()) {
+            fill([&](const openvdb::Coord& c) { return boxKeys.key(c); });
+        } else {
+            fill([&](const openvdb::Coord& c) { return partition.key(c); });
+        }
 
         // Bubbles (thesis §4.3.3.5): on a standard line, the two middle voxels of a 2x2 block
         // (LinePartition.h) are incomparable, so the visiting order may meet them in either
@@ -284,7 +302,7 @@ private:
         if (mLines == LineType::Standard) {
             work.lastOnLine.assign(lines, kNone);
             for (size_t k = 0; k < n; ++k) {
-                uint32_t& last = work.lastOnLine[work.slots[k]];
+                uint32_t& last = work.lastOnLine[work.slots[along(k)]];
                 if (last != kNone && partition.position(mCoords[along(k)])
                         < partition.position(mCoords[along(last)])) {
                     work.bubblesByLater.emplace_back(last, uint32_t(k));
@@ -297,12 +315,12 @@ private:
         return lines;
     }
 
-    /// Visit voxel x with the frontier @a front of its line, light travelling along @a t.
+    /// Visit voxel x, which faces the light by @a dx = t . n_x, with the frontier @a front of
+    /// its line, light travelling along t = travel * sigma.
     template<typename PayloadT, typename LoadT, typename VisitT>
-    void step(uint32_t x, Front<PayloadT>& front, const openvdb::Vec3f& t, float travel,
-        LoadT& load, VisitT& visit) const
+    void step(uint32_t x, Front<PayloadT>& front, float dx, float travel, LoadT& load,
+        VisitT& visit) const
     {
-        const float dx = t.dot(mNormals[x]);
         bool sees = front.region != kNone;
         if (sees && !(front.last & kSender)) {
             // The previous voxel let the light pass: x is hidden if it lies behind it.

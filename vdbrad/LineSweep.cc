@@ -1,0 +1,29 @@
+#include "vdbrad/LineSweep.h"
+
+#include "vdbrad/VectorClones.h"
+
+namespace vdbrad {
+
+namespace {
+
+// The same products and sums, in the same order, as openvdb::Vec3f::dot: every clone gives the
+// bits the scalar sweep would.
+VDBRAD_VECTOR_CLONES void
+dotAll(const openvdb::Vec3f* normals, size_t n, float sx, float sy, float sz, float* out)
+{
+    for (size_t k = 0; k < n; ++k) {
+        out[k] = sx * normals[k][0] + sy * normals[k][1] + sz * normals[k][2];
+    }
+}
+
+} // namespace
+
+void
+LineSweep::facing(const openvdb::Coord& sigma, std::vector<float>& facing) const
+{
+    facing.resize(mNormals.size());
+    dotAll(mNormals.data(), mNormals.size(), float(sigma.x()), float(sigma.y()), float(sigma.z()),
+        facing.data());
+}
+
+} // namespace vdbrad
