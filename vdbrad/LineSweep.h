@@ -177,12 +177,17 @@ public:
         LoadT&& load, VisitT&& visit) const
     {
         facing(sigma, work.facing);
-        walk(sigma, reversed, work,
-            [&](uint32_t x, Front<PayloadT>& front, bool forward) {
-                const float travel = forward ? 1.f : -1.f;
-                this->step(x, front, work.facing[x] * travel, travel, load, visit);
-            },
-            [](const std::vector<Front<PayloadT>>&, bool) {});
+        auto run = [&](auto hasRegions) {
+            walk(sigma, reversed, work,
+                [&](uint32_t x, Front<PayloadT>& front, bool forward) {
+                    const float travel = forward ? 1.f : -1.f;
+                    this->step<decltype(hasRegions)::value>(x, front, work.facing[x] * travel,
+                        travel, load, visit);
+                },
+                [](const std::vector<Front<PayloadT>>&, bool) {});
+        };
+        if (mRegions.empty()) run(std::false_type());
+        else run(std::true_type());
     }
 
     /// @brief The same report as sweep(), built the way the thesis does (§6.2.1.1): a stable
@@ -218,15 +223,21 @@ public:
                     });
             }
         }
-        for (size_t l = 0; l < lines; ++l) {
-            Front<PayloadT> forward, backward;
-            for (uint32_t e = starts[l]; e < starts[l + 1]; ++e) {
-                step(listed[e], forward, work.facing[listed[e]], 1.f, load, visit);
+        auto run = [&](auto hasRegions) {
+            constexpr bool kRegions = decltype(hasRegions)::value;
+            for (size_t l = 0; l < lines; ++l) {
+                Front<PayloadT> forward, backward;
+                for (uint32_t e = starts[l]; e < starts[l + 1]; ++e) {
+                    step<kRegions>(listed[e], forward, work.facing[listed[e]], 1.f, load, visit);
+                }
+                for (uint32_t e = starts[l + 1]; e > starts[l]; --e) {
+                    const uint32_t x = listed[e - 1];
+                    step<kRegions>(x, backward, -work.facing[x], -1.f, load, visit);
+                }
             }
-            for (uint32_t e = starts[l + 1]; e > starts[l]; --e) {
-                step(listed[e - 1], backward, -work.facing[listed[e - 1]], -1.f, load, visit);
-            }
-        }
+        };
+        if (mRegions.empty()) run(std::false_type());
+        else run(std::true_type());
     }
 
 private:
@@ -316,12 +327,21 @@ private:
     }
 
     /// Visit voxel x, which faces the light by @a dx = t . n_x, with the frontier @a front of
-    /// its line, light travelling along t = travel * sigma.
-    template<typename PayloadT, typename LoadT, typename VisitT>
+    /// its line, light travelling along t = travel * sigma. HasRegions: mRegions is not empty
+    /// (a template flag, so that the one-region case tests nothing per voxel).
+    template<bool HasRegions, typename PayloadT, typename LoadT, typename VisitT>
     void step(uint32_t x, Front<PayloadT>& front, float dx, float travel, LoadT& load,
         VisitT& visit) const
     {
-        bool sees = front.region != kNone;
+        const uint32_t region = HasRegions ? mRegions[x] : 0u;
+        if (dx > 0.f) {
+            // A sender replaces what travels, whatever it would have seen.
+            front.last = x | kSender;
+            front.region = region;
+            front.payload = load(x);
+            return;
+        }
+        bool sees = front.region == region;   // kNone (nothing travels) never equals a region
         if (sees && !(front.last & kSender)) {
             // The previous voxel let the light pass: x is hidden if it lies behind it.
             const uint32_t last = front.last;
@@ -329,17 +349,9 @@ private:
                 sees = false;
             }
         }
-        const uint32_t region = mRegions.empty() ? 0u : mRegions[x];
-        if (sees && front.region != region) sees = false;
         if (dx < 0.f) visit(x, sees ? &front.payload : nullptr, dx * travel);   // = sigma . n_x
-        if (dx > 0.f) {
-            front.last = x | kSender;
-            front.region = region;
-            front.payload = load(x);
-        } else {
-            front.last = x;
-            if (!sees) front.region = kNone;
-        }
+        front.last = x;
+        if (!sees) front.region = kNone;
     }
 
     LeafOrder::Signs mSigns;

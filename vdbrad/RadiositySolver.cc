@@ -307,24 +307,33 @@ struct RadiositySolver::Engine
                             if (cancelled.load(std::memory_order_relaxed)) return;
                             const float c = impl.coefficient[k];
                             // x (a position in the pattern's order) receives what it sees.
-                            auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
-                                if (seen) {
-                                    const float w = std::abs(sigmaDotN) * c;
-                                    G[x] += *seen * w;
-                                    if (H) (*H)[x] += w;
+                            // Compiled with and without the hit weights, so that the sweeps of
+                            // every iteration but the first test nothing for them.
+                            auto gatherer = [&](auto withHits) {
+                                return [&, withHits](uint32_t x, const ValueT* seen,
+                                           float sigmaDotN) {
+                                    if (seen) {
+                                        const float w = std::abs(sigmaDotN) * c;
+                                        G[x] += *seen * w;
+                                        if constexpr (decltype(withHits)::value) (*H)[x] += w;
+                                    }
+                                };
+                            };
+                            auto run = [&](auto gather) {
+                                const openvdb::Coord& sigma = s.mDirections.direction(k);
+                                if (impl.rays) {
+                                    const std::vector<uint32_t>& at = pattern.position;
+                                    impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
+                                        gather(at[x], y == RayCastVisibility::kNone ? nullptr
+                                            : &Bp[at[y]], dn);
+                                    });
+                                } else {
+                                    pattern.sweep->sweep(sigma, impl.reversed[k] != 0, work,
+                                        [&](uint32_t y) { return Bp[y]; }, gather);
                                 }
                             };
-                            const openvdb::Coord& sigma = s.mDirections.direction(k);
-                            if (impl.rays) {
-                                const std::vector<uint32_t>& at = pattern.position;
-                                impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
-                                    gather(at[x], y == RayCastVisibility::kNone ? nullptr
-                                        : &Bp[at[y]], dn);
-                                });
-                            } else {
-                                pattern.sweep->sweep(sigma, impl.reversed[k] != 0, work,
-                                    [&](uint32_t y) { return Bp[y]; }, gather);
-                            }
+                            if (H) run(gatherer(std::true_type()));
+                            else run(gatherer(std::false_type()));
                             const size_t d = ++done;
                             if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
                                 cancelled = true;
