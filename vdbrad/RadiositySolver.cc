@@ -578,7 +578,7 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     if (wide) perVoxel += channels * 4;     // B rounded to float
     perVoxel += size_t(kGroups) * c;        // gathered sums per group
     perVoxel += size_t(kGroups) * scalar;   // hit weights (first iteration)
-    perVoxel += t * (4 + 8 + c);            // per-thread sweep workspace: slots, line fronts
+    perVoxel += t * (4 + 4 + 8 + c);        // per-thread sweep workspace: slots, facing, fronts
     if (options.update == UpdateScheme::Progressive) perVoxel += c;
     if (options.accelerate == Acceleration::Anderson) {
         perVoxel += c;                      // the swept iterate
