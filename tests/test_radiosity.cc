@@ -522,6 +522,40 @@ TEST_F(RadiosityTest, StreamingSweepAndExplicitLineListsAgree)
     }
 }
 
+TEST_F(RadiosityTest, SweepsReportSigmaDotNAsTheScalarDotProduct)
+{
+    // sigma . n_x is computed for all voxels at once in vector lanes (LineSweep::facing, AVX-512
+    // or AVX2 clones where the CPU has them). It must be bit for bit the plain float dot product
+    // (no fused multiply-add in any clone), or results would change from one CPU to another. A
+    // sphere, so that the normals' products and sums round (axis normals would hide a fusion).
+    const Scene scene = canonicalScene("furnace-sphere", 24);
+    const DirectionSet set = DirectionSet::fromCount(100);
+    size_t reports = 0, inexact = 0;
+    for (size_t d = 0; d < set.size(); ++d) {
+        bool reversed = false;
+        const LeafOrder order(scene.voxels(), LeafOrder::baseSigns(set.direction(d), reversed));
+        const LineSweep sweep(scene.voxels(), order, &scene.normals(), LineType::Naive);
+        const openvdb::Coord& sigma = set.direction(d);
+        const openvdb::Vec3f s(float(sigma.x()), float(sigma.y()), float(sigma.z()));
+        LineSweep::Workspace<uint32_t> work;
+        sweep.sweep(sigma, reversed, work, [](uint32_t y) { return y; },
+            [&](uint32_t x, const uint32_t*, float dn) {
+                const openvdb::Vec3f& n = scene.normals()[order.voxels()[x]];
+                const float expected = s.dot(n);
+                ASSERT_EQ(std::memcmp(&dn, &expected, sizeof(float)), 0)
+                    << sigma << " " << n << ": " << dn << " vs " << expected;
+                // How often a fused a*b + c would have rounded differently here.
+                if (double(s[0]) * n[0] + double(s[1]) * n[1] + double(s[2]) * n[2]
+                        != double(expected)) {
+                    ++inexact;
+                }
+                ++reports;
+            });
+    }
+    EXPECT_GT(reports, scene.size() * set.size() / 2);
+    EXPECT_GT(inexact, reports / 4);   // the check has rounding to see
+}
+
 TEST_F(RadiosityTest, RayCastingReferenceAgreesWithTheSweeps)
 {
     // The ray-casting reference marches each receiver's line through the tree with none of

@@ -1,9 +1,9 @@
 // VectorClones: compile a hot loop several times, for AVX-512, AVX2 and plain x86-64, and let
 // the loader pick the best the CPU has (GCC's function multiversioning). The library stays one
 // portable binary while its few vectorisable sweep kernels use the wide units where they exist.
-// Only on integer kernels or ones whose float operations a vector lane performs in the same order:
-// neither target enables FMA, so no clone contracts a product and a sum, and every clone gives
-// the bits of the plain one (tests compare sweeps bit for bit with the ray-casting reference).
+// Only on integer kernels or ones whose float operations a vector lane performs in the same order;
+// the library builds with -ffp-contract=off (CMakeLists.txt), so the AVX-512 clone, which could
+// fuse a product and a sum, does not, and every clone gives the bits of the plain one.
 #pragma once
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
