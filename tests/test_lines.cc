@@ -189,6 +189,50 @@ int l1(const Coord& u, const Coord& v)
     return std::abs(v[0] - u[0]) + std::abs(v[1] - u[1]) + std::abs(v[2] - u[2]);
 }
 
+// Corner c (0..7, bit k: max along axis k) of @a box.
+Coord corner(const CoordBBox& box, int c)
+{
+    return Coord(c & 1 ? box.max().x() : box.min().x(), c & 2 ? box.max().y() : box.min().y(),
+        c & 4 ? box.max().z() : box.min().z());
+}
+
+// The s-th test voxel of @a box: its 8 corners, then voxels near its centre (where the centred
+// rule moves even numerators, LinePartition::centreOn) up to s = 400, then random ones.
+Coord boxSample(std::mt19937& rng, const CoordBBox& box, int s)
+{
+    if (s < 8) return corner(box, s);
+    if (s < 400) {
+        std::uniform_int_distribution<int> comp(-12, 12);
+        const Coord c = ((box.min() + box.max()) >> 1) + Coord(comp(rng), comp(rng), comp(rng));
+        return Coord::maxComponent(box.min(), Coord::minComponent(box.max(), c));
+    }
+    std::uniform_int_distribution<int> x(box.min().x(), box.max().x()),
+        y(box.min().y(), box.max().y()), z(box.min().z(), box.max().z());
+    return Coord(x(rng), y(rng), z(rng));
+}
+
+// f(sigma, type, box, partition) for @a tries random directions (components in [-12, 12], the
+// primitive ones), both line types, and every box, the partition centred on the box.
+template<typename F>
+void forCentredPartitions(std::mt19937& rng, int tries, const std::vector<CoordBBox>& boxes, F&& f)
+{
+    std::uniform_int_distribution<int> comp(-12, 12);
+    for (int d = 0; d < tries; ++d) {
+        const Coord sigma(comp(rng), comp(rng), comp(rng));
+        if (sigma == Coord(0)) continue;
+        if (std::gcd(std::gcd(std::abs(sigma.x()), std::abs(sigma.y())), std::abs(sigma.z())) != 1) {
+            continue;
+        }
+        for (LineType type : {LineType::Naive, LineType::Standard}) {
+            for (const CoordBBox& box : boxes) {
+                LinePartition p(sigma, type);
+                p.centreOn(box.min() + box.max());
+                f(sigma, box, p);
+            }
+        }
+    }
+}
+
 // ---- floor division ---------------------------------------------------------------------------
 
 TEST(LinePartition, FloorDivMatchesFloor)
@@ -628,45 +672,26 @@ TEST(LinePartition, BoxKeysEqualKeysInsideTheirBox)
     // The multiplication-only keys must equal key() for every voxel of the box, for both line
     // types, every sign pattern, boxes on either side of the origin and near the int32 limits.
     std::mt19937 rng(31);
-    std::uniform_int_distribution<int> comp(-12, 12);
     const std::vector<CoordBBox> boxes = {
         CoordBBox(Coord(-40, -33, -17), Coord(41, 30, 52)),
         CoordBBox(Coord(1000, 2000, -3000), Coord(1100, 2050, -2900)),
         CoordBBox(Coord(-2000000, -1000000, 5), Coord(1500000, 3, 2000000)),
         CoordBBox(Coord(-(1 << 30), -(1 << 30), -(1 << 30)), Coord(1 << 30, 1 << 30, 1 << 30))};
-    size_t checked = 0, validBoxes = 0;
-    for (int d = 0; d < 60; ++d) {
-        const Coord sigma(comp(rng), comp(rng), comp(rng));
-        if (sigma == Coord(0)) continue;
-        if (std::gcd(std::gcd(std::abs(sigma.x()), std::abs(sigma.y())), std::abs(sigma.z())) != 1) {
-            continue;
-        }
-        for (LineType type : {LineType::Naive, LineType::Standard}) {
-            for (const CoordBBox& box : boxes) {
-                LinePartition p(sigma, type);
-                p.centreOn(box.min() + box.max());
-                const LinePartition::BoxKeys keys(p, box);
-                if (!keys.valid()) continue;
-                ++validBoxes;
-                std::uniform_int_distribution<int> x(box.min().x(), box.max().x()),
-                    y(box.min().y(), box.max().y()), z(box.min().z(), box.max().z());
-                for (int s = 0; s < 2000; ++s) {
-                    // Random voxels, the corners, and voxels on line bounds near the centre.
-                    Coord c(x(rng), y(rng), z(rng));
-                    if (s < 8) {
-                        c = Coord(s & 1 ? box.max().x() : box.min().x(),
-                            s & 2 ? box.max().y() : box.min().y(),
-                            s & 4 ? box.max().z() : box.min().z());
-                    } else if (s < 400) {
-                        const Coord mid = (box.min() + box.max()) >> 1;
-                        c = mid + Coord(comp(rng), comp(rng), comp(rng));
-                    }
-                    ASSERT_EQ(keys.key(c), p.key(c)) << sigma << " " << c;
-                    ++checked;
+    size_t checked = 0, validBoxes = 0, wrong = 0;
+    forCentredPartitions(rng, 60, boxes,
+        [&](const Coord& sigma, const CoordBBox& box, const LinePartition& p) {
+            const LinePartition::BoxKeys keys(p, box);
+            if (!keys.valid()) return;
+            ++validBoxes;
+            for (int s = 0; s < 2000; ++s) {
+                const Coord c = boxSample(rng, box, s);
+                if (keys.key(c) != p.key(c) && ++wrong < 5) {
+                    ADD_FAILURE() << sigma << " " << c;
                 }
+                ++checked;
             }
-        }
-    }
+        });
+    EXPECT_EQ(wrong, 0u);
     EXPECT_GT(validBoxes, 250u);
     EXPECT_GT(checked, 500000u);
     // Where the shifted numerators could pass 2^64 / 2w the box is refused (callers fall back
@@ -680,10 +705,8 @@ TEST(LinePartition, BoxKeysEqualKeysInsideTheirBox)
 TEST(LinePartition, VectorSlotsEqualDenseKeys)
 {
     // BoxKeys::slots (32-bit lanes, vectorised) must give (i - i0) * nj + (j - j0) of key() for
-    // every voxel, or refuse the box. Random voxels plus the corners and the voxels around the
-    // centre, where the centred rule moves even numerators (LinePartition::centreOn).
+    // every voxel, or refuse the box, writing nothing.
     std::mt19937 rng(57);
-    std::uniform_int_distribution<int> comp(-12, 12);
     const std::vector<CoordBBox> boxes = {
         CoordBBox(Coord(-40, -33, -17), Coord(41, 30, 52)),
         CoordBBox(Coord(0), Coord(0)),
@@ -692,60 +715,36 @@ TEST(LinePartition, VectorSlotsEqualDenseKeys)
         // min + max overflows int32, so the partition is far from centred: refused or exact.
         CoordBBox(Coord(-2000000000, 7, 1999999000), Coord(-1999999000, 1000, 2000000000)),
         CoordBBox(Coord(-2000000, -1000000, 5), Coord(1500000, 3, 2000000))};
-    size_t checked = 0, accepted = 0, refused = 0;
-    for (int d = 0; d < 80; ++d) {
-        const Coord sigma(comp(rng), comp(rng), comp(rng));
-        if (sigma == Coord(0)) continue;
-        if (std::gcd(std::gcd(std::abs(sigma.x()), std::abs(sigma.y())), std::abs(sigma.z())) != 1) {
-            continue;
-        }
-        for (LineType type : {LineType::Naive, LineType::Standard}) {
-            for (const CoordBBox& box : boxes) {
-                LinePartition p(sigma, type);
-                p.centreOn(box.min() + box.max());
-                const LinePartition::BoxKeys keys(p, box);
-                int64_t i0 = INT64_MAX, i1 = INT64_MIN, j0 = INT64_MAX, j1 = INT64_MIN;
-                for (int c = 0; c < 8; ++c) {
-                    const LineKey k = p.key(Coord(c & 1 ? box.max().x() : box.min().x(),
-                        c & 2 ? box.max().y() : box.min().y(),
-                        c & 4 ? box.max().z() : box.min().z()));
-                    i0 = std::min(i0, k.i); i1 = std::max(i1, k.i);
-                    j0 = std::min(j0, k.j); j1 = std::max(j1, k.j);
-                }
-                std::uniform_int_distribution<int> x(box.min().x(), box.max().x()),
-                    y(box.min().y(), box.max().y()), z(box.min().z(), box.max().z());
-                std::vector<Coord> voxels;
-                const Coord mid = (box.min() + box.max()) >> 1;
-                for (int s = 0; s < 1500; ++s) {
-                    Coord c(x(rng), y(rng), z(rng));
-                    if (s < 8) {
-                        c = Coord(s & 1 ? box.max().x() : box.min().x(),
-                            s & 2 ? box.max().y() : box.min().y(),
-                            s & 4 ? box.max().z() : box.min().z());
-                    } else if (s < 500) {
-                        c = mid + Coord(comp(rng), comp(rng), comp(rng));
-                        c = Coord::maxComponent(box.min(), Coord::minComponent(box.max(), c));
-                    }
-                    voxels.push_back(c);
-                }
-                const int64_t nj = j1 - j0 + 1;
-                // An odd count, so that a vector loop's remainder runs too.
-                std::vector<uint32_t> slots(voxels.size() - 1, 0xdeadbeefu);
-                if (!keys.slots(voxels.data(), slots.size(), i0, j0, nj, slots.data())) {
-                    for (uint32_t v : slots) ASSERT_EQ(v, 0xdeadbeefu);   // nothing written
-                    ++refused;
-                    continue;
-                }
-                ++accepted;
-                for (size_t k = 0; k < slots.size(); ++k) {
-                    const LineKey key = p.key(voxels[k]);
-                    ASSERT_EQ(int64_t(slots[k]), (key.i - i0) * nj + (key.j - j0))
-                        << sigma << " " << voxels[k] << " " << box;
-                    ++checked;
-                }
+    size_t checked = 0, accepted = 0, refused = 0, wrong = 0;
+    forCentredPartitions(rng, 80, boxes,
+        [&](const Coord& sigma, const CoordBBox& box, const LinePartition& p) {
+            const LinePartition::BoxKeys keys(p, box);
+            int64_t i0 = INT64_MAX, i1 = INT64_MIN, j0 = INT64_MAX, j1 = INT64_MIN;
+            for (int c = 0; c < 8; ++c) {
+                const LineKey k = p.key(corner(box, c));
+                i0 = std::min(i0, k.i); i1 = std::max(i1, k.i);
+                j0 = std::min(j0, k.j); j1 = std::max(j1, k.j);
             }
-        }
-    }
+            std::vector<Coord> voxels;
+            for (int s = 0; s < 1499; ++s) voxels.push_back(boxSample(rng, box, s));
+            const int64_t nj = j1 - j0 + 1;
+            // An odd count, so that a vector loop's remainder runs too.
+            std::vector<uint32_t> slots(voxels.size(), 0xdeadbeefu);
+            if (!keys.slots(voxels.data(), slots.size(), i0, j0, nj, slots.data())) {
+                ++refused;
+                for (uint32_t v : slots) wrong += v != 0xdeadbeefu;   // nothing written
+                return;
+            }
+            ++accepted;
+            for (size_t k = 0; k < slots.size(); ++k) {
+                const LineKey key = p.key(voxels[k]);
+                if (int64_t(slots[k]) != (key.i - i0) * nj + (key.j - j0) && ++wrong < 5) {
+                    ADD_FAILURE() << sigma << " " << voxels[k] << " " << box;
+                }
+                ++checked;
+            }
+        });
+    EXPECT_EQ(wrong, 0u);
     // The small centred boxes (the first four, wherever they lie) take the vector path; the
     // boxes millions of voxels wide do not fit 32-bit lanes and are refused.
     EXPECT_GT(accepted, 4u * 100u);
