@@ -274,8 +274,10 @@ public:
         /// @brief The dense slots (key.i - i0) * nj + (key.j - j0) of @a n voxels of the box,
         /// written to @a out (what a sweep needs per voxel and direction), in 32-bit vector
         /// arithmetic: several voxels per instruction where the CPU has AVX2 or AVX-512.
+        /// @param i0, j0  the smallest keys over the box (those of its corners)
         /// @return false, writing nothing, where the box's form values or the slots do not fit
-        /// that arithmetic (boxes of many thousand voxels a side); then use key().
+        /// that arithmetic (boxes millions of voxels wide, or far wider than tall); then use
+        /// key().
         bool slots(const openvdb::math::Coord* xyz, size_t n, int64_t i0, int64_t j0, int64_t nj,
             uint32_t* out) const;
 
