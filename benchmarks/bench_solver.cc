@@ -30,6 +30,7 @@ main(int argc, char** argv)
     const int res = argc > 1 ? std::atoi(argv[1]) : 512;
     const int dirs = argc > 2 ? std::atoi(argv[2]) : 1000;
     const int iterations = argc > 3 ? std::atoi(argv[3]) : 1;
+    const size_t cacheMiB = argc > 4 ? size_t(std::atoll(argv[4])) : 0;
     vdbrad::grids::BuildParams p;
     p.res = res;
     const vdbrad::Scene scene = vdbrad::buildScene(vdbrad::grids::makeCornell(p));
@@ -83,13 +84,24 @@ main(int argc, char** argv)
         o.directions = dirs;
         o.maxIterations = iterations;
         o.tolerance = 0.0;
+        o.visibilityCache = cacheMiB << 20;
         const auto t0 = std::chrono::steady_clock::now();
         vdbrad::RadiositySolver solver(scene, o);
         const auto t1 = std::chrono::steady_clock::now();
-        solver.solve();
+        std::vector<double> each;
+        for (int it = 0; it < iterations; ++it) {
+            const auto i0 = std::chrono::steady_clock::now();
+            solver.iterate();
+            each.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - i0)
+                .count());
+        }
         const auto t2 = std::chrono::steady_clock::now();
         const double setup = std::chrono::duration<double>(t1 - t0).count();
         const double solve = std::chrono::duration<double>(t2 - t1).count();
+        const double per = double(scene.size()) * double(solver.directions().size()) * 1e-9;
+        std::printf("threads %d, ns per voxel.direction of each iteration:", threads);
+        for (double e : each) std::printf(" %.2f", e / per);
+        std::printf("\n");
         const double work = double(scene.size()) * double(solver.directions().size()) * iterations;
 
         double sink = 0.0;

@@ -659,15 +659,10 @@ threadLimit(const Arguments& a)
         size_t(threads));
 }
 
-// --max-memory: bytes, given ("512M", "8G", "1.5T", "1000000") or 3/4 of physical memory.
+// A size in bytes ("512M", "8G", "1.5T", "1000000"; binary units), > 0 or, if @a zero, >= 0.
 double
-memoryLimit(const Arguments& a)
+parseBytes(const std::string& option, const std::string& text, bool zero)
 {
-    if (!a.has("max-memory")) {
-        const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGE_SIZE);
-        return pages > 0 && size > 0 ? 0.75 * double(pages) * double(size) : 1e300;
-    }
-    const std::string text = a.getString("max-memory");
     char* end = nullptr;
     double v = std::strtod(text.c_str(), &end);
     std::string unit(end ? end : "");
@@ -679,10 +674,30 @@ memoryLimit(const Arguments& a)
     } else if (!unit.empty()) {
         v = -1.0;
     }
-    if (end == text.c_str() || !(v > 0.0) || !std::isfinite(v)) {
-        throw UsageError("--max-memory: '" + text + "' is not a size (e.g. 8G, 512M, 1000000)");
+    if (end == text.c_str() || !(v > 0.0 || (zero && v == 0.0)) || !std::isfinite(v)) {
+        throw UsageError("--" + option + ": '" + text + "' is not a size (e.g. 8G, 512M, "
+            "1000000" + (zero ? ", 0" : "") + ")");
     }
     return v;
+}
+
+// --max-memory: bytes, given or 3/4 of physical memory.
+double
+memoryLimit(const Arguments& a)
+{
+    if (!a.has("max-memory")) {
+        const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGE_SIZE);
+        return pages > 0 && size > 0 ? 0.75 * double(pages) * double(size) : 1e300;
+    }
+    return parseBytes("max-memory", a.getString("max-memory"), false);
+}
+
+// --visibility-cache: bytes, or -1 for auto (half of what --max-memory leaves to the solve).
+double
+visibilityCacheOption(const Arguments& a)
+{
+    const std::string text = a.getString("visibility-cache");
+    return text == "auto" ? -1.0 : parseBytes("visibility-cache", text, true);
 }
 
 // The estimated peak (what the process holds now plus what the solver will allocate), as a line
@@ -825,6 +840,10 @@ runSolve(const Arguments& a)
     }
     const Checkpointing checkpoints(a, in, out);
     memoryLimit(a);   // a bad --max-memory is a usage error before any work
+    const double cache = visibilityCacheOption(a);
+    if (a.has("visibility-cache") && method != "sweep") {
+        throw UsageError("--visibility-cache applies only to --method sweep");
+    }
     if (method == "montecarlo" && (!checkpoints.save.empty() || !checkpoints.resume.empty())) {
         throw UsageError("--checkpoint and --resume do not apply to --method montecarlo");
     }
@@ -855,8 +874,16 @@ runSolve(const Arguments& a)
         writeOutput(withGrids(file, solver.grids()), out);
         return 0;
     }
-    const std::string memory = checkMemory(a, label,
-        residentBytes(double(fileBytes(file) + scene.memUsage())),
+    const double held = residentBytes(double(fileBytes(file) + scene.memUsage()));
+    if (cache >= 0.0) {
+        o.visibilityCache = size_t(std::min(cache, 1e18));
+    } else {
+        // Auto: half of what the limit leaves once the solve has what it needs without it.
+        const double rest = memoryLimit(a) - held
+            - double(RadiositySolver::memoryEstimate(scene, o, workerThreads()));
+        o.visibilityCache = size_t(std::min(std::max(0.5 * rest, 0.0), 1e18));
+    }
+    const std::string memory = checkMemory(a, label, held,
         double(RadiositySolver::memoryEstimate(scene, o, workerThreads())));
     RadiositySolver solver(scene, o);
     checkpoints.restore(solver);   // before any message: a refused checkpoint is one line
@@ -868,6 +895,11 @@ runSolve(const Arguments& a)
                   << (solver.doublePrecision() ? ", double precision" : "") << "\n";
     }
     iterateWithProgress(solver, o.maxIterations, progress, checkpoints.saver(solver));
+    if (!quiet && solver.cachedDirections() > 0) {
+        std::cerr << "visibility cache: " << solver.cachedDirections() << " of "
+                  << solver.directions().size() << " directions kept ("
+                  << formatBytes(double(solver.cacheBytes())) << ")\n";
+    }
     if (!quiet && !solver.converged()) {
         warn(label, "stopped at --iterations " + std::to_string(o.maxIterations)
             + " with residual " + std::to_string(solver.residuals().back()) + " > --tolerance");
@@ -1228,6 +1260,11 @@ commands()
                     "auto, float or double: the solver's state (auto: double when an albedo "
                     "exceeds 0.999, where float rounding, amplified by 1 / (1 - albedo), would "
                     "show)"},
+                {"visibility-cache", OptionType::String, "auto", "2G",
+                    "memory for remembering what each voxel sees along each direction (~1.3 "
+                    "bytes per voxel and direction), so that iterations after the first replay "
+                    "it instead of sweeping (~4x faster, same result): a size (K, M, G, T), 0 "
+                    "for none, or auto: half of what --max-memory leaves"},
                 kAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
                 kMaxMemory, kOverwrite, kQuiet}),
             {"vdbrad make cornell - | vdbrad solve - cornell_lit.vdb --directions 1000",

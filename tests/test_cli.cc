@@ -441,6 +441,49 @@ TEST_F(CliTest, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits)
     }
 }
 
+TEST_F(CliTest, VisibilityCacheChangesTheSpeedNotTheResult)
+{
+    // By default (auto) every direction of a small solve is kept and said so; with a small
+    // budget some are, with 0 none; the three outputs are the same bits. Bad sizes, and the
+    // option with a method that does not sweep, are usage errors.
+    ASSERT_EQ(sh("vdbrad make cornell c.vdb --res 24 --quiet").status, 0);
+    const std::string solve = "vdbrad solve c.vdb ";
+    // "visibility cache: K of D directions kept".
+    auto kept = [](const Result& r, int& k, int& d) {
+        const size_t at = r.err.find("visibility cache: ");
+        return at != std::string::npos
+            && std::sscanf(r.err.c_str() + at, "visibility cache: %d of %d", &k, &d) == 2;
+    };
+    int k = 0, d = 0;
+    const Result all = sh(solve + "all.vdb --directions 100 --iterations 4");
+    ASSERT_EQ(all.status, 0) << all.err;
+    ASSERT_TRUE(kept(all, k, d)) << all.err;
+    EXPECT_EQ(k, d);
+    EXPECT_GT(d, 90);
+    const Result some = sh(solve + "some.vdb --directions 100 --iterations 4 "
+                                   "--visibility-cache 200K");
+    ASSERT_EQ(some.status, 0) << some.err;
+    ASSERT_TRUE(kept(some, k, d)) << some.err;
+    EXPECT_GT(k, 0);
+    EXPECT_LT(k, d);
+    const Result none = sh(solve + "none.vdb --directions 100 --iterations 4 "
+                                   "--visibility-cache 0");
+    ASSERT_EQ(none.status, 0) << none.err;
+    EXPECT_EQ(none.err.find("visibility cache"), std::string::npos) << none.err;
+    const auto bits = valueBits(path("none.vdb"), "radiosity");
+    ASSERT_FALSE(bits.empty());
+    EXPECT_TRUE(valueBits(path("all.vdb"), "radiosity") == bits);
+    EXPECT_TRUE(valueBits(path("some.vdb"), "radiosity") == bits);
+    for (const char* args : {"--visibility-cache lots", "--visibility-cache -1G",
+             "--visibility-cache 1G --method raycast"}) {
+        const Result r = sh(solve + "y.vdb " + args);
+        EXPECT_EQ(r.status, 2) << args;
+        EXPECT_EQ(r.errLines().size(), 1u) << args << ": " << r.err;
+        EXPECT_NE(r.err.find("--visibility-cache"), std::string::npos) << args << ": " << r.err;
+        EXPECT_FALSE(exists(path("y.vdb"))) << args;
+    }
+}
+
 TEST_F(CliTest, MemoryEstimateIsPrintedMatchesThePeakAndRefusesOverTheLimit)
 {
     // The printed estimate against the measured peak (GNU time's maximum resident set, which
@@ -450,6 +493,7 @@ TEST_F(CliTest, MemoryEstimateIsPrintedMatchesThePeakAndRefusesOverTheLimit)
                  "vdbrad make cumulus k.vdb --res 64 --quiet").status, 0);
     for (const char* run : {"solve c.vdb o.vdb --directions 20 --iterations 1",
              "solve c.vdb o.vdb --directions 20 --iterations 1 --precision double",
+             "solve c.vdb o.vdb --directions 20 --iterations 2",
              "solve-cloud k.vdb o.vdb --directions 100 --iterations 1 --g 0.8 --phase-order 4 "
              "--accelerate anderson"}) {
         const Result r = sh(std::string("/usr/bin/time -f 'peak %M' '" VDBRAD_CLI_PATH "' ")

@@ -400,6 +400,81 @@ TEST_F(RadiosityTest, ResultIsBitIdenticalForAnyThreadCount)
     }
 }
 
+TEST_F(RadiosityTest, VisibilityCacheGivesTheSweepsBitsInEverySolverMode)
+{
+    // A kept direction is swept once and replayed from its report afterwards
+    // (RadiosityOptions::visibilityCache): every later iterate must be the sweeping solver's,
+    // bit for bit, whether all, some or none of the directions are kept, in every update
+    // scheme, line type, precision, on 1 or 2 threads, grey or RGB, with closed cavities
+    // renormalised (Cornell) or not.
+    struct Case
+    {
+        const char* scene;
+        UpdateScheme update;
+        LineType lines;
+        Precision precision;
+        Acceleration accelerate;
+    };
+    const Case cases[] = {
+        {"cornell", UpdateScheme::InPlace, LineType::Naive, Precision::Float, Acceleration::None},
+        {"cornell", UpdateScheme::Jacobi, LineType::Standard, Precision::Float,
+            Acceleration::None},
+        {"cornell", UpdateScheme::Progressive, LineType::Naive, Precision::Double,
+            Acceleration::None},
+        {"cornell", UpdateScheme::Jacobi, LineType::Naive, Precision::Float,
+            Acceleration::Anderson},
+        {"furnace-sphere", UpdateScheme::InPlace, LineType::Standard, Precision::Float,
+            Acceleration::None},
+        {"furnace-sphere", UpdateScheme::Jacobi, LineType::Naive, Precision::Double,
+            Acceleration::None},
+    };
+    for (const Case& c : cases) {
+        const Scene scene = canonicalScene(c.scene, 20);
+        RadiosityOptions o;
+        o.directions = 60;
+        o.maxIterations = 4;
+        o.tolerance = 0.0;
+        o.update = c.update;
+        o.lines = c.lines;
+        o.precision = c.precision;
+        o.accelerate = c.accelerate;
+        auto result = [&](size_t cache, int threads, size_t& kept, size_t& bytes) {
+            tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                size_t(threads));
+            o.visibilityCache = cache;
+            RadiositySolver solver(scene, o);
+            solver.solve();
+            EXPECT_EQ(solver.iterationCount(), 4);
+            kept = solver.cachedDirections();
+            bytes = solver.cacheBytes();
+            if (!scene.isRgb()) return solver.grey();
+            const float* rgb = solver.rgb()[0].asPointer();
+            return std::vector<float>(rgb, rgb + 3 * solver.rgb().size());
+        };
+        size_t kept = 0, bytes = 0;
+        const std::vector<float> swept = result(0, 2, kept, bytes);
+        EXPECT_EQ(kept, 0u);
+        EXPECT_EQ(bytes, 0u);
+        const std::vector<float> all = result(size_t(1) << 30, 2, kept, bytes);
+        const size_t dirs = DirectionSet::fromCount(60).size();
+        EXPECT_EQ(kept, dirs) << c.scene;
+        // The code's size per voxel and direction: 1 byte each, a few more for far steps.
+        const double perEntry = double(bytes) / double(kept * scene.size());
+        EXPECT_GE(perEntry, 1.0);
+        EXPECT_LT(perEntry, 2.0);
+        std::cout << c.scene << ": " << perEntry << " bytes per voxel.direction kept\n";
+        const std::vector<float> some = result(bytes / 3, 1, kept, bytes);
+        EXPECT_GT(kept, 0u);
+        EXPECT_LT(kept, dirs);
+        ASSERT_EQ(all.size(), swept.size());
+        ASSERT_EQ(some.size(), swept.size());
+        EXPECT_EQ(std::memcmp(all.data(), swept.data(), swept.size() * sizeof(float)), 0)
+            << c.scene << ": every direction kept";
+        EXPECT_EQ(std::memcmp(some.data(), swept.data(), swept.size() * sizeof(float)), 0)
+            << c.scene << ": a third of them kept";
+    }
+}
+
 TEST_F(RadiosityTest, GreySceneStaysGreyAndRgbChannelsMatchGreySolves)
 {
     // An RGB solve is three independent grey solves: channel c of the RGB furnace with albedo

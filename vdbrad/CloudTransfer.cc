@@ -442,7 +442,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
                                     pattern.sweep->coord(x), forward ? unit : -unit, forward);
                                 if (at >= 0) ++impl.enterCount[slice + size_t(at)];
                             },
-                            [](const std::vector<Ray>&, bool) {});
+                            [](const Ray*, size_t, bool) {});
                     });
                 }
             });
@@ -671,9 +671,10 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                                 }
                                 ray.radiance += (s - ray.radiance) * absorb;
                             },
-                            [&](const std::vector<Ray>& fronts, bool forward) {
+                            [&](const Ray* fronts, size_t lines, bool forward) {
                                 const Vec3d t = forward ? unit : -unit;
-                                for (const Ray& ray : fronts) {
+                                for (size_t l = 0; l < lines; ++l) {
+                                    const Ray& ray = fronts[l];
                                     if (!ray.started || ray.radiance == 0.f) continue;
                                     const double p = double(ray.radiance) * etendue;
                                     if (periodic) {

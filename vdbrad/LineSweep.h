@@ -118,8 +118,9 @@ public:
     /// @brief Walk every line of sigma in both senses, in exact line order: first along +sigma
     /// (@a forward true), then along -sigma, calling step(x, state, forward) for every voxel x
     /// (a position in this sweep's order) with the state its line carries, which each pass
-    /// starts as StateT() and step() updates. endOfPass(fronts, forward) then sees every line's
-    /// final state (what leaves the last voxel). Sequential, like sweep().
+    /// starts as StateT() and step() updates. endOfPass(fronts, lines, forward) then sees every
+    /// line's final state (what leaves the last voxel): fronts[0, lines). Sequential, like
+    /// sweep().
     template<typename StateT, typename StepT, typename EndT>
     void walk(const openvdb::Coord& sigma, bool reversed, Lanes<StateT>& work, StepT&& step,
         EndT&& endOfPass) const
@@ -163,7 +164,7 @@ public:
             };
             if (skips.empty()) pass(std::false_type());
             else pass(std::true_type());
-            endOfPass(static_cast<const std::vector<StateT>&>(work.fronts), forward);
+            endOfPass(static_cast<const StateT*>(work.fronts.data()), lines, forward);
         }
     }
 
@@ -187,10 +188,36 @@ public:
                     this->step<decltype(hasRegions)::value>(x, front, work.facing[x] * travel,
                         travel, load, visit);
                 },
-                [](const std::vector<Front<PayloadT>>&, bool) {});
+                [](const Front<PayloadT>*, size_t, bool) {});
         };
         if (mRegions.empty()) run(std::false_type());
         else run(std::true_type());
+    }
+
+    /// @brief sweep()'s report as an array: out[x] = the position of the voxel that x sees,
+    /// kNone where it sees nothing or faces neither sense (sigma . n_x = 0); and visit(x, y,
+    /// sigmaDotN) for every voxel x that sees a voxel y. What a voxel sees depends on the
+    /// geometry only, so that a solver can keep @a out (VisibilityCache) instead of sweeping
+    /// sigma again. @a out holds size() entries.
+    template<typename VisitT>
+    void seen(const openvdb::Coord& sigma, bool reversed, Workspace<uint32_t>& work,
+        uint32_t* out, VisitT&& visit) const
+    {
+        std::fill_n(out, size(), kNone);
+        sweep(sigma, reversed, work, [](uint32_t y) { return y; },
+            [&](uint32_t x, const uint32_t* y, float sigmaDotN) {
+                if (!y) return;
+                out[x] = *y;
+                visit(x, *y, sigmaDotN);
+            });
+    }
+
+    /// sigma . n_x for the voxel at position @a x, bit for bit as sweep() reports it (the
+    /// products and sums of dotAll() in LineSweep.cc, in its order).
+    float facing(const openvdb::Coord& sigma, uint32_t x) const
+    {
+        const openvdb::Vec3f& n = mNormals[x];
+        return float(sigma.x()) * n[0] + float(sigma.y()) * n[1] + float(sigma.z()) * n[2];
     }
 
     /// @brief The same report as sweep(), built the way the thesis does (§6.2.1.1): a stable
@@ -249,19 +276,25 @@ private:
     template<typename T> struct IsFront : std::false_type {};
     template<typename P> struct IsFront<Front<P>> : std::true_type {};
 
-    /// @a fronts holding @a lines default states (StateT()): by memset for a Front, whose
-    /// default is zero bytes (filled element by element, this was ~10% of a solver's sweep).
+    /// The first @a lines of @a fronts set to the default state StateT(): by memset for a
+    /// Front, whose default is zero bytes (filled element by element, this was ~10% of a
+    /// solver's sweep). The vector only grows: resizing it to each direction's line count
+    /// initialised its tail twice and, on growth, faulted in fresh pages (~10% of a sweep).
     template<typename StateT>
     static void clear(std::vector<StateT>& fronts, size_t lines)
     {
+        if (fronts.size() < lines) {
+            fronts.clear();   // nothing to copy across a reallocation
+            fronts.resize(lines);
+            return;
+        }
         if constexpr (IsFront<StateT>::value) {
             static_assert(std::is_trivially_copyable_v<StateT>, "a Front is cleared by memset");
-            fronts.resize(lines);
             if (lines > 0) {
                 std::memset(static_cast<void*>(fronts.data()), 0, lines * sizeof(StateT));
             }
         } else {
-            fronts.assign(lines, StateT());
+            std::fill_n(fronts.begin(), lines, StateT());
         }
     }
 

@@ -6,8 +6,10 @@
 #include "vdbrad/LeafOrder.h"
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/RayCastVisibility.h"
+#include "vdbrad/VisibilityCache.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -139,6 +141,18 @@ struct RadiositySolver::Impl
     };
     std::array<Pattern, 4> patterns;
     std::unique_ptr<RayCastVisibility> rays;             // Visibility::RayCast only
+    // RadiosityOptions::visibilityCache (null: none): the kept reports, in each direction's
+    // pattern order; per direction, whether its report was offered to it; and each thread's
+    // scratch memory for making a report.
+    std::unique_ptr<VisibilityCache> cache;
+    std::vector<char> offered;
+    struct Report
+    {
+        LineSweep::Workspace<uint32_t> work;
+        std::vector<uint32_t> seen;
+        std::vector<uint8_t> code;
+    };
+    tbb::enumerable_thread_specific<Report> reports;
     std::vector<char> reversed;                          // per direction
     std::vector<float> coefficient;                      // per direction: A / |s|
     std::vector<double> invZ;                            // per voxel: 1 / Z(n)
@@ -157,6 +171,10 @@ struct RadiositySolver::Impl
         std::vector<ValueT> unshot;                          // progressive shooting only
         std::vector<std::vector<typename Traits<ValueT>::Acc>> gathered;   // per group
         std::unique_ptr<AndersonMixerT<Scalar>> mixer;       // Acceleration::Anderson only
+        // Sweep scratch memory, kept by each thread across directions and iterations: a fresh
+        // one per group and iteration reallocated its line fronts as they grew, and faulting
+        // in those pages cost ~10% of an iteration.
+        tbb::enumerable_thread_specific<LineSweep::Workspace<ValueT>> work;
     };
     // Only the one of the scene's kind and precision is used; in double, the float one of the
     // same kind holds B rounded to float after every change, for grey(), rgb() and grid().
@@ -302,7 +320,7 @@ struct RadiositySolver::Engine
                         G.assign(n, openvdb::zeroVal<AccT>());
                         std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
                         if (H) H->assign(n, Scalar(0));
-                        LineSweep::Workspace<ValueT> work;
+                        LineSweep::Workspace<ValueT>& work = impl.state<ValueT>().work.local();
                         impl.forDirections(g, [&](size_t k) {
                             if (cancelled.load(std::memory_order_relaxed)) return;
                             const float c = impl.coefficient[k];
@@ -327,6 +345,22 @@ struct RadiositySolver::Engine
                                         gather(at[x], y == RayCastVisibility::kNone ? nullptr
                                             : &Bp[at[y]], dn);
                                     });
+                                } else if (impl.cache && impl.cache->has(k)) {
+                                    const LineSweep& sweep = *pattern.sweep;
+                                    impl.cache->replay(k, [&](uint32_t x, uint32_t y) {
+                                        gather(x, &Bp[y], sweep.facing(sigma, x));
+                                    });
+                                } else if (impl.cache && !impl.offered[k]) {
+                                    // Swept once for its report, kept if the cache has room.
+                                    Impl::Report& report = impl.reports.local();
+                                    report.seen.resize(n);
+                                    pattern.sweep->seen(sigma, impl.reversed[k] != 0,
+                                        report.work, report.seen.data(),
+                                        [&](uint32_t x, uint32_t y, float dn) {
+                                            gather(x, &Bp[y], dn);
+                                        });
+                                    impl.cache->offer(k, report.seen.data(), report.code);
+                                    impl.offered[k] = 1;
                                 } else {
                                     pattern.sweep->sweep(sigma, impl.reversed[k] != 0, work,
                                         [&](uint32_t y) { return Bp[y]; }, gather);
@@ -412,6 +446,12 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     const size_t dirs = mDirections.size(), n = scene.size();
 
     Impl& impl = *mImpl;
+    // A cache pays from the second iteration on.
+    if (options.visibilityCache > 0 && options.visibility == Visibility::Sweep
+        && options.maxIterations > 1) {
+        impl.cache.reset(new VisibilityCache(dirs, n, options.visibilityCache));
+        impl.offered.assign(dirs, 0);
+    }
     LeafOrder::Patterns dealt = LeafOrder::patterns(dirs,
         [&](size_t k) { return mDirections.direction(k); });
     impl.reversed = std::move(dealt.reversed);
@@ -494,6 +534,18 @@ RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
     mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     mResiduals.push_back(residual);
     return residual;
+}
+
+size_t
+RadiositySolver::cachedDirections() const
+{
+    return mImpl->cache ? mImpl->cache->kept() : 0;
+}
+
+size_t
+RadiositySolver::cacheBytes() const
+{
+    return mImpl->cache ? mImpl->cache->bytes() : 0;
 }
 
 bool
@@ -579,6 +631,10 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     perVoxel += size_t(kGroups) * c;        // gathered sums per group
     perVoxel += size_t(kGroups) * scalar;   // hit weights (first iteration)
     perVoxel += t * (4 + 4 + 8 + c);        // per-thread sweep workspace: slots, facing, fronts
+    const bool cache = options.visibilityCache > 0 && options.maxIterations > 1
+        && options.visibility == Visibility::Sweep;
+    // Per thread, a report's sweep workspace (4-byte payload), positions and code.
+    if (cache) perVoxel += t * (4 + 4 + 12 + 4 + VisibilityCache::worstBytes(1));
     if (options.update == UpdateScheme::Progressive) perVoxel += c;
     if (options.accelerate == Acceleration::Anderson) {
         perVoxel += c;                      // the swept iterate
@@ -586,6 +642,15 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
                          : AndersonMixerT<float>::bytes(channels, options.andersonDepth);
     }
     size_t bytes = n * perVoxel;
+    if (cache) {
+        // The budget, or what every direction's report needs at most if that is less.
+        size_t kept = options.visibilityCache;
+        if (options.directions >= 1 && size_t(options.directions) <= DirectionSet::maxCount()) {
+            const size_t dirs = DirectionSet::fromCount(options.directions).size();
+            kept = std::min(kept, dirs * VisibilityCache::worstBytes(n));
+        }
+        bytes += kept;
+    }
     // Enclosure's fill: per 8^3 block of the bounding box and per leaf, up to its cap.
     if (regionBlocks(scene.voxels()) <= kEnclosureBlocks) bytes += regionsBytes(scene.voxels());
     return bytes;

@@ -111,6 +111,12 @@ struct RadiosityOptions
     int andersonDepth = 16;
     /// Float or double state (Auto: double only for albedos above 0.999).
     Precision precision = Precision::Auto;
+    /// Bytes the solver may keep to remember what each voxel sees along each direction
+    /// (VisibilityCache.h, ~1-2 bytes per voxel and direction): a kept direction is swept
+    /// once, and later iterations gather along it instead of sweeping it (~4x faster; the
+    /// same results, bit for bit). Directions are kept while the budget lasts. 0, or a single
+    /// iteration: every iteration sweeps every direction.
+    size_t visibilityCache = 0;
 };
 
 class RadiositySolver
@@ -145,6 +151,10 @@ public:
     const std::vector<openvdb::Vec3f>& rgb() const;
     /// True if the state is double (RadiosityOptions::precision).
     bool doublePrecision() const;
+    /// Directions the visibility cache holds, and its bytes (RadiosityOptions::visibilityCache;
+    /// filled by the first iteration).
+    size_t cachedDirections() const;
+    size_t cacheBytes() const;
 
     /// @brief Make @a b (one value per voxel, in Scene order) the iterate the next iterate()
     /// sweeps: a restart from a known state. The next step is a Jacobi one and an Anderson
