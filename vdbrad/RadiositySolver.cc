@@ -219,6 +219,9 @@ struct RadiositySolver::Impl
     }
 };
 
+// Kept directions replayed in one pass over the voxels.
+constexpr size_t kReplayed = 4;
+
 template<typename ValueT>
 struct RadiositySolver::Engine
 {
@@ -249,6 +252,38 @@ struct RadiositySolver::Engine
         }
         impl.narrowView();
         return residual;
+    }
+
+    // Replay @a count kept directions @a ks, in order, in one pass over the voxels: G[x] (and
+    // H[x]) receive the same terms in the same order as from one pass per direction, so the
+    // same bits, but G and the normals are read once for all of them (a replay is bound by
+    // memory traffic, not arithmetic).
+    template<bool Hits>
+    static void replay(const RadiositySolver& s, const LineSweep& sweep, const size_t* ks,
+        size_t count, const std::vector<ValueT>& Bp, std::vector<AccT>& G,
+        std::vector<Scalar>* H)
+    {
+        const Impl& impl = *s.mImpl;
+        std::array<VisibilityCache::Reader, kReplayed> readers;
+        std::array<float, kReplayed> c;
+        std::array<openvdb::Coord, kReplayed> sigma;
+        for (size_t j = 0; j < count; ++j) {
+            readers[j] = VisibilityCache::Reader(*impl.cache, ks[j]);
+            c[j] = impl.coefficient[ks[j]];
+            sigma[j] = s.mDirections.direction(ks[j]);
+        }
+        const uint32_t n = uint32_t(G.size());
+        for (uint32_t x = 0; x < n; ++x) {
+            AccT sum = G[x];
+            for (size_t j = 0; j < count; ++j) {
+                uint32_t y;
+                if (!readers[j].next(y)) continue;
+                const float w = std::abs(sweep.facing(sigma[j], x)) * c[j];
+                sum += Bp[y] * w;
+                if constexpr (Hits) (*H)[x] += w;
+            }
+            G[x] = sum;
+        }
     }
 
     static double iterate(RadiositySolver& s, std::vector<ValueT>& B,
@@ -321,34 +356,48 @@ struct RadiositySolver::Engine
                         std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
                         if (H) H->assign(n, Scalar(0));
                         LineSweep::Workspace<ValueT>& work = impl.state<ValueT>().work.local();
-                        impl.forDirections(g, [&](size_t k) {
-                            if (cancelled.load(std::memory_order_relaxed)) return;
-                            const float c = impl.coefficient[k];
-                            // x (a position in the pattern's order) receives what it sees.
-                            // Compiled with and without the hit weights, so that the sweeps of
-                            // every iteration but the first test nothing for them.
-                            auto gatherer = [&](auto withHits) {
-                                return [&, withHits](uint32_t x, const ValueT* seen,
-                                           float sigmaDotN) {
+                        std::vector<size_t> mine;
+                        impl.forDirections(g, [&](size_t k) { mine.push_back(k); });
+                        auto finished = [&](size_t count) {
+                            const size_t d = done += count;
+                            if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
+                                cancelled = true;
+                            }
+                        };
+                        // Compiled with and without the hit weights, so that the sweeps of
+                        // every iteration but the first test nothing for them.
+                        auto directions = [&](auto withHits) {
+                            constexpr bool kHits = decltype(withHits)::value;
+                            for (size_t i = 0; i < mine.size();) {
+                                if (cancelled.load(std::memory_order_relaxed)) return;
+                                // Kept directions in a row are replayed together, in order.
+                                size_t kept = 0;
+                                while (kept < kReplayed && i + kept < mine.size() && impl.cache
+                                    && impl.cache->has(mine[i + kept])) {
+                                    ++kept;
+                                }
+                                if (kept > 0) {
+                                    replay<kHits>(s, *pattern.sweep, &mine[i], kept, Bp, G, H);
+                                    finished(kept);
+                                    i += kept;
+                                    continue;
+                                }
+                                const size_t k = mine[i++];
+                                const float c = impl.coefficient[k];
+                                // x (a position in the pattern's order) receives what it sees.
+                                auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
                                     if (seen) {
                                         const float w = std::abs(sigmaDotN) * c;
                                         G[x] += *seen * w;
-                                        if constexpr (decltype(withHits)::value) (*H)[x] += w;
+                                        if constexpr (kHits) (*H)[x] += w;
                                     }
                                 };
-                            };
-                            auto run = [&](auto gather) {
                                 const openvdb::Coord& sigma = s.mDirections.direction(k);
                                 if (impl.rays) {
                                     const std::vector<uint32_t>& at = pattern.position;
                                     impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
                                         gather(at[x], y == RayCastVisibility::kNone ? nullptr
                                             : &Bp[at[y]], dn);
-                                    });
-                                } else if (impl.cache && impl.cache->has(k)) {
-                                    const LineSweep& sweep = *pattern.sweep;
-                                    impl.cache->replay(k, [&](uint32_t x, uint32_t y) {
-                                        gather(x, &Bp[y], sweep.facing(sigma, x));
                                     });
                                 } else if (impl.cache && !impl.offered[k]) {
                                     // Swept once for its report, kept if the cache has room.
@@ -365,14 +414,11 @@ struct RadiositySolver::Engine
                                     pattern.sweep->sweep(sigma, impl.reversed[k] != 0, work,
                                         [&](uint32_t y) { return Bp[y]; }, gather);
                                 }
-                            };
-                            if (H) run(gatherer(std::true_type()));
-                            else run(gatherer(std::false_type()));
-                            const size_t d = ++done;
-                            if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
-                                cancelled = true;
+                                finished(1);
                             }
-                        });
+                        };
+                        if (H) directions(std::true_type());
+                        else directions(std::false_type());
                     }
                 });
             if (cancelled) throw Cancelled("radiosity solve");

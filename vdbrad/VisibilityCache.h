@@ -45,28 +45,48 @@ public:
     /// Bytes of the report of a direction with @a voxels voxels, at most.
     static size_t worstBytes(size_t voxels) { return 5 * voxels; }
 
+    /// Direction k's kept report (has(k) must hold), decoded one voxel at a time in position
+    /// order, so that several directions can be replayed in one pass over the voxels.
+    class Reader
+    {
+    public:
+        Reader() = default;
+        Reader(const VisibilityCache& cache, size_t k) : mNext(cache.mData[k].get()) {}
+        /// The next voxel's entry: false if it sees nothing, else true and @a y the voxel it
+        /// sees.
+        bool next(uint32_t& y)
+        {
+            const int8_t c = int8_t(*mNext++);
+            if (c == kSeesNothing) return false;
+            if (c < kStep16) {
+                mLast += uint32_t(int32_t(c));
+            } else if (c == kStep16) {
+                int16_t d;
+                std::memcpy(&d, mNext, sizeof d);
+                mNext += sizeof d;
+                mLast += uint32_t(int32_t(d));
+            } else {
+                std::memcpy(&mLast, mNext, sizeof mLast);
+                mNext += sizeof mLast;
+            }
+            y = mLast;
+            return true;
+        }
+
+    private:
+        const uint8_t* mNext = nullptr;
+        uint32_t mLast = 0;
+    };
+
     /// @brief f(x, y) for every voxel x that sees a voxel y in direction @a k's kept report, x
     /// increasing. has(k) must hold.
     template<typename F>
     void replay(size_t k, F&& f) const
     {
-        const uint8_t* p = mData[k].get();
-        uint32_t last = 0;
+        Reader reader(*this, k);
+        uint32_t y = 0;
         for (uint32_t x = 0; x < uint32_t(mVoxels); ++x) {
-            const int8_t c = int8_t(*p++);
-            if (c == kSeesNothing) continue;
-            if (c < kStep16) {
-                last += uint32_t(int32_t(c));
-            } else if (c == kStep16) {
-                int16_t d;
-                std::memcpy(&d, p, sizeof d);
-                p += sizeof d;
-                last += uint32_t(int32_t(d));
-            } else {
-                std::memcpy(&last, p, sizeof last);
-                p += sizeof last;
-            }
-            f(x, last);
+            if (reader.next(y)) f(x, y);
         }
     }
 
