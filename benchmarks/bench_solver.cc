@@ -7,7 +7,13 @@
 //    frontier entry and adding what it took to its accumulator, nothing else (no visibility
 //    rule, no normals, no regions): the floor of any sweep that keeps a state per line.
 //
-//   build/benchmarks/bench_solver [res=512] [directions=1000] [iterations=1]
+// The first iteration sweeps every direction (and records what each voxel sees into the
+// visibility cache); later ones replay the kept directions (RadiosityOptions::visibilityCache):
+// both are printed, and their mean over the run.
+//
+//   build/benchmarks/bench_solver [res=512] [directions=1000] [iterations=4] [cacheMiB=all]
+//
+// cacheMiB 0: no cache, every iteration sweeps every direction.
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
@@ -29,8 +35,8 @@ main(int argc, char** argv)
     openvdb::initialize();
     const int res = argc > 1 ? std::atoi(argv[1]) : 512;
     const int dirs = argc > 2 ? std::atoi(argv[2]) : 1000;
-    const int iterations = argc > 3 ? std::atoi(argv[3]) : 1;
-    const size_t cacheMiB = argc > 4 ? size_t(std::atoll(argv[4])) : 0;
+    const int iterations = std::max(argc > 3 ? std::atoi(argv[3]) : 4, 1);
+    const size_t cacheBytes = argc > 4 ? size_t(std::atoll(argv[4])) << 20 : SIZE_MAX;
     vdbrad::grids::BuildParams p;
     p.res = res;
     const vdbrad::Scene scene = vdbrad::buildScene(vdbrad::grids::makeCornell(p));
@@ -84,7 +90,7 @@ main(int argc, char** argv)
         o.directions = dirs;
         o.maxIterations = iterations;
         o.tolerance = 0.0;
-        o.visibilityCache = cacheMiB << 20;
+        o.visibilityCache = cacheBytes;
         const auto t0 = std::chrono::steady_clock::now();
         vdbrad::RadiositySolver solver(scene, o);
         const auto t1 = std::chrono::steady_clock::now();
@@ -95,14 +101,11 @@ main(int argc, char** argv)
             each.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - i0)
                 .count());
         }
-        const auto t2 = std::chrono::steady_clock::now();
         const double setup = std::chrono::duration<double>(t1 - t0).count();
-        const double solve = std::chrono::duration<double>(t2 - t1).count();
         const double per = double(scene.size()) * double(solver.directions().size()) * 1e-9;
-        std::printf("threads %d, ns per voxel.direction of each iteration:", threads);
-        for (double e : each) std::printf(" %.2f", e / per);
-        std::printf("\n");
-        const double work = double(scene.size()) * double(solver.directions().size()) * iterations;
+        double later = 0.0;
+        for (size_t it = 1; it < each.size(); ++it) later += each[it];
+        const double all = each[0] + later;
 
         double sink = 0.0;
         const auto b0 = std::chrono::steady_clock::now();
@@ -116,14 +119,28 @@ main(int argc, char** argv)
             sink += acc;
         }
         const double base = std::chrono::duration<double>(std::chrono::steady_clock::now() - b0)
-            .count() * iterations;
-        const double frontier = frontierSeconds * iterations;
-        std::printf("threads %d: %zu directions, setup %.2f s, %d iteration(s) %.2f s: "
-                    "%.2f ns per voxel.direction.iteration (%.2f ns x threads); baselines "
-                    "(1 thread): stream %.2f ns (ratio %.1fx), frontier %.2f ns (ratio %.1fx)%s\n",
-            threads, solver.directions().size(), setup, iterations, solve, 1e9 * solve / work,
-            1e9 * solve * threads / work, 1e9 * base / work, (solve * threads) / base,
-            1e9 * frontier / work, (solve * threads) / frontier,
+            .count();
+        std::printf("threads %d: %zu directions, setup %.2f s, visibility cache %zu of %zu "
+                    "directions (%.1f MiB, %.2f bytes per voxel.direction)\n",
+            threads, solver.directions().size(), setup, solver.cachedDirections(),
+            solver.directions().size(), double(solver.cacheBytes()) / (1 << 20),
+            solver.cachedDirections() > 0 ? double(solver.cacheBytes())
+                / (double(solver.cachedDirections()) * double(scene.size())) : 0.0);
+        std::printf("  iteration 1 (sweeps): %.2f ns per voxel.direction (%.2f per core)\n",
+            each[0] / per, each[0] * threads / per);
+        if (each.size() > 1) {
+            const double mean = later / double(each.size() - 1);
+            std::printf("  iterations 2-%zu (%s): %.2f ns (%.2f per core); each:", each.size(),
+                solver.cachedDirections() == solver.directions().size() ? "replayed"
+                : solver.cachedDirections() > 0 ? "partly replayed" : "sweeps",
+                mean / per, mean * threads / per);
+            for (size_t it = 1; it < each.size(); ++it) std::printf(" %.2f", each[it] / per);
+            std::printf("\n");
+        }
+        std::printf("  all %zu: %.2f ns per voxel.direction.iteration (%.2f per core); "
+                    "baselines (1 thread): stream %.2f ns, frontier %.2f ns%s\n",
+            each.size(), all / per / double(each.size()),
+            all * threads / per / double(each.size()), base / per, frontierSeconds / per,
             sink + frontierSink == 42.0 ? " " : "");
     }
     return 0;

@@ -689,11 +689,11 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     }
     size_t bytes = n * perVoxel;
     if (cache) {
-        // The budget, or what every direction's report needs at most if that is less.
+        // The budget, or what every direction's report typically needs if that is less.
         size_t kept = options.visibilityCache;
         if (options.directions >= 1 && size_t(options.directions) <= DirectionSet::maxCount()) {
             const size_t dirs = DirectionSet::fromCount(options.directions).size();
-            kept = std::min(kept, dirs * VisibilityCache::worstBytes(n));
+            kept = std::min(kept, dirs * VisibilityCache::typicalBytes(n));
         }
         bytes += kept;
     }
