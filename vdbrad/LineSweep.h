@@ -190,8 +190,7 @@ public:
                 },
                 [](const Front<PayloadT>*, size_t, bool) {});
         };
-        if (mRegions.empty()) run(std::false_type());
-        else run(std::true_type());
+        withRegions(run);
     }
 
     /// @brief sweep()'s report as an array: out[x] = the position of the voxel that x sees,
@@ -266,8 +265,7 @@ public:
                 }
             }
         };
-        if (mRegions.empty()) run(std::false_type());
-        else run(std::true_type());
+        withRegions(run);
     }
 
 private:
@@ -296,6 +294,15 @@ private:
         } else {
             std::fill_n(fronts.begin(), lines, StateT());
         }
+    }
+
+    /// f(std::true_type()) if voxels face several air regions, else f(std::false_type()): the
+    /// step's HasRegions flag.
+    template<typename F>
+    void withRegions(F&& f) const
+    {
+        if (mRegions.empty()) f(std::false_type());
+        else f(std::true_type());
     }
 
     /// facing[x] = sigma . n_x for every position x, in vector lanes (LineSweep.cc). The
