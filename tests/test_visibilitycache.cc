@@ -41,7 +41,10 @@ std::vector<std::pair<uint32_t, uint32_t>>
 replayed(const VisibilityCache& cache, size_t k)
 {
     std::vector<std::pair<uint32_t, uint32_t>> out;
-    cache.replay(k, [&](uint32_t x, uint32_t y) { out.emplace_back(x, y); });
+    VisibilityCache::Reader reader(cache, k);
+    for (uint32_t x = 0, y = 0; x < cache.voxels(); ++x) {
+        if (reader.next(y)) out.emplace_back(x, y);
+    }
     return out;
 }
 

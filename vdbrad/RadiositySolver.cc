@@ -221,6 +221,7 @@ struct RadiositySolver::Impl
 
 // Kept directions replayed in one pass over the voxels.
 constexpr size_t kReplayed = 4;
+static_assert(VisibilityCache::kNone == LineSweep::kNone, "reports are LineSweep::seen()'s");
 
 template<typename ValueT>
 struct RadiositySolver::Engine

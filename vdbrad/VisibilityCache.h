@@ -38,6 +38,7 @@ public:
     bool offer(size_t k, const uint32_t* seen, std::vector<uint8_t>& scratch);
 
     bool has(size_t k) const { return bool(mData[k]); }
+    size_t voxels() const { return mVoxels; }
     /// Bytes held, and directions kept.
     size_t bytes() const { return mBudget - mLeft.load(); }
     size_t kept() const { return mKept.load(); }
@@ -80,18 +81,6 @@ public:
         const uint8_t* mNext = nullptr;
         uint32_t mLast = 0;
     };
-
-    /// @brief f(x, y) for every voxel x that sees a voxel y in direction @a k's kept report, x
-    /// increasing. has(k) must hold.
-    template<typename F>
-    void replay(size_t k, F&& f) const
-    {
-        Reader reader(*this, k);
-        uint32_t y = 0;
-        for (uint32_t x = 0; x < uint32_t(mVoxels); ++x) {
-            if (reader.next(y)) f(x, y);
-        }
-    }
 
 private:
     // One-byte codes: a step of -127..125 from the last voxel seen, or one of these.
