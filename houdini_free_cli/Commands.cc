@@ -1263,7 +1263,7 @@ commands()
                 {"visibility-cache", OptionType::String, "auto", "2G",
                     "memory for remembering what each voxel sees along each direction (~1.3 "
                     "bytes per voxel and direction), so that iterations after the first replay "
-                    "it instead of sweeping (~4x faster, same result): a size (K, M, G, T), 0 "
+                    "it instead of sweeping (3-4x faster, same result): a size (K, M, G, T), 0 "
                     "for none, or auto: half of what --max-memory leaves"},
                 kAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
                 kMaxMemory, kOverwrite, kQuiet}),

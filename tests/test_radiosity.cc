@@ -476,6 +476,29 @@ TEST_F(RadiosityTest, VisibilityCacheGivesTheSweepsBitsInEverySolverMode)
     }
 }
 
+TEST_F(RadiosityTest, MemoryEstimateCountsTheVisibilityCacheUpToItsBudget)
+{
+    // The cache adds its budget, or 2 bytes per voxel and direction if that is less ("all" must
+    // not overflow), plus each thread's recording scratch; nothing for a single iteration.
+    const Scene scene = canonicalScene("cornell", 20);
+    RadiosityOptions o;
+    o.directions = 60;
+    o.maxIterations = 4;
+    const size_t n = scene.size(), dirs = DirectionSet::fromCount(60).size();
+    const size_t base = RadiositySolver::memoryEstimate(scene, o, 2);
+    o.visibilityCache = 1000;
+    const size_t small = RadiositySolver::memoryEstimate(scene, o, 2);
+    o.visibilityCache = SIZE_MAX;
+    const size_t all = RadiositySolver::memoryEstimate(scene, o, 2);
+    ASSERT_GT(small, base + 1000);
+    const size_t scratch = small - base - 1000;   // two threads' recording memory
+    EXPECT_EQ(scratch % (2 * n), 0u);
+    EXPECT_EQ(all, base + scratch + dirs * 2 * n);
+    EXPECT_LT(all, size_t(1) << 32);
+    o.maxIterations = 1;
+    EXPECT_EQ(RadiositySolver::memoryEstimate(scene, o, 2), base);
+}
+
 TEST_F(RadiosityTest, GreySceneStaysGreyAndRgbChannelsMatchGreySolves)
 {
     // An RGB solve is three independent grey solves: channel c of the RGB furnace with albedo

@@ -696,7 +696,7 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
             const size_t dirs = DirectionSet::fromCount(options.directions).size();
             kept = std::min(kept, dirs * VisibilityCache::typicalBytes(n));
         }
-        bytes += kept;
+        bytes = kept > SIZE_MAX - bytes ? SIZE_MAX : bytes + kept;   // a budget may be "all"
     }
     // Enclosure's fill: per 8^3 block of the bounding box and per leaf, up to its cap.
     if (regionBlocks(scene.voxels()) <= kEnclosureBlocks) bytes += regionsBytes(scene.voxels());

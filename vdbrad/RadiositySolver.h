@@ -113,7 +113,7 @@ struct RadiosityOptions
     Precision precision = Precision::Auto;
     /// Bytes the solver may keep to remember what each voxel sees along each direction
     /// (VisibilityCache.h, ~1-2 bytes per voxel and direction): a kept direction is swept
-    /// once, and later iterations gather along it instead of sweeping it (~4x faster; the
+    /// once, and later iterations gather along it instead of sweeping it (3-4x faster; the
     /// same results, bit for bit). Directions are kept while the budget lasts. 0, or a single
     /// iteration: every iteration sweeps every direction.
     size_t visibilityCache = 0;

@@ -4,7 +4,7 @@
 // Which voxel a voxel sees along a direction (LineSweep::seen) depends on the geometry only, yet
 // a line sweep recomputes it every iteration: finding the lines, the visibility rule and the
 // line fronts are most of an iteration's cost. Kept, a direction's later iterations are a gather
-// along a sequential stream (~4x faster on the Cornell box, BENCHMARKS.md).
+// along a sequential stream (3-4x faster on the Cornell box, BENCHMARKS.md).
 //
 // Memory: a direction's report is one entry per voxel, delta-coded against the last voxel seen
 // (neighbours in visiting order see neighbours): 1 byte for a small step or "sees nothing", 3 for
