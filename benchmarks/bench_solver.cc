@@ -20,6 +20,8 @@
 
 #include <tbb/global_control.h>
 
+#include <sys/resource.h>
+
 #include "vdbrad/LinePartition.h"
 
 #include <algorithm>
@@ -95,11 +97,16 @@ main(int argc, char** argv)
         vdbrad::RadiositySolver solver(scene, o);
         const auto t1 = std::chrono::steady_clock::now();
         std::vector<double> each;
+        std::vector<long> faults;   // minor page faults per iteration: first touches of memory
         for (int it = 0; it < iterations; ++it) {
+            struct rusage r0, r1;
+            getrusage(RUSAGE_SELF, &r0);
             const auto i0 = std::chrono::steady_clock::now();
             solver.iterate();
             each.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - i0)
                 .count());
+            getrusage(RUSAGE_SELF, &r1);
+            faults.push_back(r1.ru_minflt - r0.ru_minflt);
         }
         const double setup = std::chrono::duration<double>(t1 - t0).count();
         const double per = double(scene.size()) * double(solver.directions().size()) * 1e-9;
@@ -126,8 +133,8 @@ main(int argc, char** argv)
             solver.directions().size(), double(solver.cacheBytes()) / (1 << 20),
             solver.cachedDirections() > 0 ? double(solver.cacheBytes())
                 / (double(solver.cachedDirections()) * double(scene.size())) : 0.0);
-        std::printf("  iteration 1 (sweeps): %.2f ns per voxel.direction (%.2f per core)\n",
-            each[0] / per, each[0] * threads / per);
+        std::printf("  iteration 1 (sweeps): %.2f ns per voxel.direction (%.2f per core), "
+                    "%ld page faults\n", each[0] / per, each[0] * threads / per, faults[0]);
         if (each.size() > 1) {
             const double mean = later / double(each.size() - 1);
             std::printf("  iterations 2-%zu (%s): %.2f ns (%.2f per core); each:", each.size(),
@@ -135,6 +142,8 @@ main(int argc, char** argv)
                 : solver.cachedDirections() > 0 ? "partly replayed" : "sweeps",
                 mean / per, mean * threads / per);
             for (size_t it = 1; it < each.size(); ++it) std::printf(" %.2f", each[it] / per);
+            std::printf("; page faults each:");
+            for (size_t it = 1; it < each.size(); ++it) std::printf(" %ld", faults[it]);
             std::printf("\n");
         }
         std::printf("  all %zu: %.2f ns per voxel.direction.iteration (%.2f per core); "

@@ -194,21 +194,15 @@ public:
     }
 
     /// @brief sweep()'s report as an array: out[x] = the position of the voxel that x sees,
-    /// kNone where it sees nothing or faces neither sense (sigma . n_x = 0); and visit(x, y,
-    /// sigmaDotN) for every voxel x that sees a voxel y. What a voxel sees depends on the
-    /// geometry only, so that a solver can keep @a out (VisibilityCache) instead of sweeping
-    /// sigma again. @a out holds size() entries.
-    template<typename VisitT>
+    /// kNone where it sees nothing or faces neither sense (sigma . n_x = 0). What a voxel sees
+    /// depends on the geometry only, so that a solver can keep @a out (VisibilityCache) instead
+    /// of sweeping sigma again. @a out holds size() entries.
     void seen(const openvdb::Coord& sigma, bool reversed, Workspace<uint32_t>& work,
-        uint32_t* out, VisitT&& visit) const
+        uint32_t* out) const
     {
         std::fill_n(out, size(), kNone);
         sweep(sigma, reversed, work, [](uint32_t y) { return y; },
-            [&](uint32_t x, const uint32_t* y, float sigmaDotN) {
-                if (!y) return;
-                out[x] = *y;
-                visit(x, *y, sigmaDotN);
-            });
+            [&](uint32_t x, const uint32_t* y, float) { if (y) out[x] = *y; });
     }
 
     /// sigma . n_x for the voxel at position @a x, bit for bit as sweep() reports it (the

@@ -255,21 +255,31 @@ struct RadiositySolver::Engine
         return residual;
     }
 
-    // Replay @a count kept directions @a ks, in order, in one pass over the voxels: G[x] (and
-    // H[x]) receive the same terms in the same order as from one pass per direction, so the
-    // same bits, but G and the normals are read once for all of them (a replay is bound by
-    // memory traffic, not arithmetic).
-    template<bool Hits>
+    // A report that the cache did not keep, read entry by entry as VisibilityCache::Reader
+    // reads a kept one.
+    struct RawReader
+    {
+        const uint32_t* at;
+        bool next(uint32_t& y)
+        {
+            y = *at++;
+            return y != LineSweep::kNone;
+        }
+    };
+
+    // Replay the reports of @a count directions @a ks, in order, read by @a readers, in one
+    // pass over the voxels: G[x] (and H[x]) receive the same terms in the same order as from
+    // one sweep per direction, so the same bits, but G and the normals are read once for all
+    // of them (a replay is bound by memory traffic, not arithmetic).
+    template<bool Hits, typename ReaderT>
     static void replay(const RadiositySolver& s, const LineSweep& sweep, const size_t* ks,
-        size_t count, const std::vector<ValueT>& Bp, std::vector<AccT>& G,
+        ReaderT* readers, size_t count, const std::vector<ValueT>& Bp, std::vector<AccT>& G,
         std::vector<Scalar>* H)
     {
         const Impl& impl = *s.mImpl;
-        std::array<VisibilityCache::Reader, kReplayed> readers;
         std::array<float, kReplayed> c;
         std::array<openvdb::Coord, kReplayed> sigma;
         for (size_t j = 0; j < count; ++j) {
-            readers[j] = VisibilityCache::Reader(*impl.cache, ks[j]);
             c[j] = impl.coefficient[ks[j]];
             sigma[j] = s.mDirections.direction(ks[j]);
         }
@@ -369,21 +379,48 @@ struct RadiositySolver::Engine
                         // every iteration but the first test nothing for them.
                         auto directions = [&](auto withHits) {
                             constexpr bool kHits = decltype(withHits)::value;
-                            for (size_t i = 0; i < mine.size();) {
-                                if (cancelled.load(std::memory_order_relaxed)) return;
-                                // Kept directions in a row are replayed together, in order.
-                                size_t kept = 0;
-                                while (kept < kReplayed && i + kept < mine.size() && impl.cache
-                                    && impl.cache->has(mine[i + kept])) {
-                                    ++kept;
+                            // Kept directions wait here to be replayed together, in order.
+                            std::array<size_t, kReplayed> queued;
+                            size_t count = 0;
+                            auto flush = [&] {
+                                if (count == 0) return;
+                                std::array<VisibilityCache::Reader, kReplayed> readers;
+                                for (size_t j = 0; j < count; ++j) {
+                                    readers[j] = VisibilityCache::Reader(*impl.cache, queued[j]);
                                 }
-                                if (kept > 0) {
-                                    replay<kHits>(s, *pattern.sweep, &mine[i], kept, Bp, G, H);
-                                    finished(kept);
-                                    i += kept;
+                                replay<kHits>(s, *pattern.sweep, queued.data(), readers.data(),
+                                    count, Bp, G, H);
+                                finished(count);
+                                count = 0;
+                            };
+                            for (const size_t k : mine) {
+                                if (cancelled.load(std::memory_order_relaxed)) return;
+                                const openvdb::Coord& sigma = s.mDirections.direction(k);
+                                if (impl.cache && !impl.offered[k]) {
+                                    // Swept once for its report, then replayed from the cache
+                                    // like later iterations, or from the report if the cache
+                                    // has no room: gathering inside the recording sweep read
+                                    // B at random between its line fronts, ~2x a replay.
+                                    Impl::Report& report = impl.reports.local();
+                                    report.seen.resize(n);
+                                    pattern.sweep->seen(sigma, impl.reversed[k] != 0,
+                                        report.work, report.seen.data());
+                                    impl.cache->offer(k, report.seen.data(), report.code);
+                                    impl.offered[k] = 1;
+                                    if (!impl.cache->has(k)) {
+                                        flush();
+                                        RawReader raw{report.seen.data()};
+                                        replay<kHits>(s, *pattern.sweep, &k, &raw, 1, Bp, G, H);
+                                        finished(1);
+                                        continue;
+                                    }
+                                }
+                                if (impl.cache && impl.cache->has(k)) {
+                                    queued[count++] = k;
+                                    if (count == kReplayed) flush();
                                     continue;
                                 }
-                                const size_t k = mine[i++];
+                                flush();
                                 const float c = impl.coefficient[k];
                                 // x (a position in the pattern's order) receives what it sees.
                                 auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
@@ -393,30 +430,19 @@ struct RadiositySolver::Engine
                                         if constexpr (kHits) (*H)[x] += w;
                                     }
                                 };
-                                const openvdb::Coord& sigma = s.mDirections.direction(k);
                                 if (impl.rays) {
                                     const std::vector<uint32_t>& at = pattern.position;
                                     impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
                                         gather(at[x], y == RayCastVisibility::kNone ? nullptr
                                             : &Bp[at[y]], dn);
                                     });
-                                } else if (impl.cache && !impl.offered[k]) {
-                                    // Swept once for its report, kept if the cache has room.
-                                    Impl::Report& report = impl.reports.local();
-                                    report.seen.resize(n);
-                                    pattern.sweep->seen(sigma, impl.reversed[k] != 0,
-                                        report.work, report.seen.data(),
-                                        [&](uint32_t x, uint32_t y, float dn) {
-                                            gather(x, &Bp[y], dn);
-                                        });
-                                    impl.cache->offer(k, report.seen.data(), report.code);
-                                    impl.offered[k] = 1;
                                 } else {
                                     pattern.sweep->sweep(sigma, impl.reversed[k] != 0, work,
                                         [&](uint32_t y) { return Bp[y]; }, gather);
                                 }
                                 finished(1);
                             }
+                            flush();
                         };
                         if (H) directions(std::true_type());
                         else directions(std::false_type());
