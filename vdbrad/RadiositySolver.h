@@ -124,6 +124,8 @@ class RadiositySolver
 public:
     /// Accumulator groups: fixed, so that results do not depend on the thread count.
     static constexpr int kGroups = 8;
+    /// Kept directions are replayed in blocks of this many voxels (RadiositySolver.cc).
+    static constexpr uint32_t kReplayBlock = 1024;
 
     /// @brief Prepare the solve: directions, sweep orders, per-voxel normalisation. B starts at E.
     /// @throw openvdb::ValueError for invalid options
