@@ -26,4 +26,11 @@ LineSweep::facing(const openvdb::Coord& sigma, std::vector<float>& facing) const
         facing.data());
 }
 
+void
+LineSweep::facing(const openvdb::Coord& sigma, uint32_t begin, uint32_t end, float* out) const
+{
+    dotAll(mNormals.data() + begin, end - begin, float(sigma.x()), float(sigma.y()),
+        float(sigma.z()), out);
+}
+
 } // namespace vdbrad

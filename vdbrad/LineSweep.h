@@ -205,13 +205,9 @@ public:
             [&](uint32_t x, const uint32_t* y, float) { if (y) out[x] = *y; });
     }
 
-    /// sigma . n_x for the voxel at position @a x, bit for bit as sweep() reports it (the
-    /// products and sums of dotAll() in LineSweep.cc, in its order).
-    float facing(const openvdb::Coord& sigma, uint32_t x) const
-    {
-        const openvdb::Vec3f& n = mNormals[x];
-        return float(sigma.x()) * n[0] + float(sigma.y()) * n[1] + float(sigma.z()) * n[2];
-    }
+    /// out[x - begin] = sigma . n_x for the positions x in [begin, end), bit for bit as
+    /// sweep() reports them (the same vector kernel, dotAll() in LineSweep.cc).
+    void facing(const openvdb::Coord& sigma, uint32_t begin, uint32_t end, float* out) const;
 
     /// @brief The same report as sweep(), built the way the thesis does (§6.2.1.1): a stable
     /// counting sort of the voxels into explicit per-line lists, then each list walked in both

@@ -290,16 +290,25 @@ struct RadiositySolver::Engine
             sigma[j] = s.mDirections.direction(ks[j]);
         }
         const uint32_t n = uint32_t(G.size());
+        // Raw pointers and a block of sigma . n computed in vector lanes, so that the gather
+        // loop reloads nothing it could keep in registers (through the vectors, it did: the
+        // compiler could not prove the sums' stores leave them alone).
+        const ValueT* bp = Bp.data();
+        AccT* g = G.data();
+        Scalar* h = Hits ? H->data() : nullptr;
+        std::array<float, kReplayBlock> facing;
         for (uint32_t x0 = 0, x1; x0 < n; x0 = x1) {
             x1 = x0 + std::min(kReplayBlock, n - x0);
             for (size_t j = 0; j < count; ++j) {
+                sweep.facing(sigma[j], x0, x1, facing.data());
+                const float cj = c[j];
                 ReaderT reader = readers[j];   // in registers across the block
                 for (uint32_t x = x0; x < x1; ++x) {
                     uint32_t y;
                     if (!reader.next(y)) continue;
-                    const float w = std::abs(sweep.facing(sigma[j], x)) * c[j];
-                    G[x] += Bp[y] * w;
-                    if constexpr (Hits) (*H)[x] += w;
+                    const float w = std::abs(facing[x - x0]) * cj;
+                    g[x] += bp[y] * w;
+                    if constexpr (Hits) h[x] += w;
                 }
                 readers[j] = reader;
             }
