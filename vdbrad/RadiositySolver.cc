@@ -273,10 +273,9 @@ struct RadiositySolver::Engine
 
     // Replay the reports of @a count directions @a ks, in order, read by @a readers: G[x] (and
     // H[x]) receive the same terms in the same order as from one sweep per direction, so the
-    // same bits. A replay is bound by memory traffic, not arithmetic: one direction at a time
-    // over the whole scene read and wrote G (12 bytes per voxel, RGB) and read the normals (12
-    // more) once per direction, against ~1.2 bytes of report; in blocks of voxels, the block's
-    // G and normals are read from memory once for all @a count directions.
+    // same bits. In blocks of voxels, the block's G (12 bytes per voxel, RGB) and normals (12
+    // more) come from memory once for all @a count directions, not once per direction against
+    // ~1.2 bytes of report; what is left is decoding and the scattered reads of Bp[y].
     template<bool Hits, typename ReaderT>
     static void replay(const RadiositySolver& s, const LineSweep& sweep, const size_t* ks,
         ReaderT* readers, size_t count, const std::vector<ValueT>& Bp, std::vector<AccT>& G,
