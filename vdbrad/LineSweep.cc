@@ -22,8 +22,7 @@ void
 LineSweep::facing(const openvdb::Coord& sigma, std::vector<float>& facing) const
 {
     facing.resize(mNormals.size());
-    dotAll(mNormals.data(), mNormals.size(), float(sigma.x()), float(sigma.y()), float(sigma.z()),
-        facing.data());
+    this->facing(sigma, 0, uint32_t(mNormals.size()), facing.data());
 }
 
 void
