@@ -1,0 +1,350 @@
+// Bit-identity guard: every solver variant, on the canonical scenes, computes exactly the bits it
+// computed when tests/golden/solver-bits.txt was written.
+//
+// Why: refactorings of the shared sweep engine, the iteration helper and the command line must
+// not change a single output bit (issue 22); the physics tests' tolerances would let a changed
+// summation order through. The hashes (FNV-1a of the output arrays and of the residual history)
+// are of this machine's builds: the library is compiled without FP contraction and its vector
+// clones give the plain build's bits (BENCHMARKS.md), so they do not depend on the CPU or the
+// thread count. A change that is meant to change results (new physics) regenerates the file:
+//
+//     VDBRAD_UPDATE_GOLDEN=1 build/tests/test_golden   (writes both files in tests/golden/)
+//
+// and says so in its commit message.
+#include "vdbrad/Checkpoint.h"
+#include "vdbrad/Cloud.h"
+#include "vdbrad/CloudTransfer.h"
+#include "vdbrad/MonteCarloSolver.h"
+#include "vdbrad/PhaseFunction.h"
+#include "vdbrad/RadiositySolver.h"
+
+#include "CanonicalScene.h"
+#include "ToolTest.h"
+
+#include <gtest/gtest.h>
+
+#include <openvdb/openvdb.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <iomanip>
+#include <map>
+#include <sstream>
+
+using namespace vdbrad;
+
+namespace {
+
+const char* const kGoldenFile = VDBRAD_SOURCE_DIR "/tests/golden/solver-bits.txt";
+const char* const kToolGoldenFile = VDBRAD_SOURCE_DIR "/tests/golden/tool-bits.txt";
+
+template<typename T>
+uint64_t
+hashOf(const std::vector<T>& v, uint64_t h)
+{
+    return hashBytes(v.data(), v.size() * sizeof(T), h);
+}
+
+std::string
+hex(uint64_t h)
+{
+    std::ostringstream os;
+    os << std::hex << std::setw(16) << std::setfill('0') << h;
+    return os.str();
+}
+
+// One case: a name and how to compute its hash.
+struct Case
+{
+    std::string name;
+    std::function<uint64_t()> run;
+};
+
+uint64_t
+surface(const Scene& scene, RadiosityOptions o)
+{
+    RadiositySolver solver(scene, o);
+    solver.solve();
+    uint64_t h = hashOf(solver.residuals(), hashBytes("surface", 7));
+    return scene.isRgb() ? hashOf(solver.rgb(), h) : hashOf(solver.grey(), h);
+}
+
+uint64_t
+cloud(const std::string& builder, int res, CloudTransferOptions o, float albedo = -1.f)
+{
+    grids::BuildParams p;
+    p.res = res;
+    p.albedo = albedo;
+    const Cloud c = buildCloud(grids::findBuilder(builder)->build(p));
+    CloudTransfer transfer(c, o);
+    transfer.solve();
+    const CloudBudget& b = transfer.budget();
+    const double budget[4] = {b.albedo, b.transmittance, b.directTransmittance, b.absorptance};
+    uint64_t h = hashOf(transfer.residuals(), hashBytes("cloud", 5));
+    h = hashBytes(budget, sizeof budget, h);
+    return hashOf(transfer.meanIntensity(), h);
+}
+
+std::vector<Case>
+cases()
+{
+    std::vector<Case> all;
+    // Surfaces: the Cornell box is RGB, the furnace sphere, disk and plates grey. Few iterations
+    // and no tolerance: every variant runs the same count, and the cases stay fast.
+    auto base = [] {
+        RadiosityOptions o;
+        o.directions = 120;
+        o.maxIterations = 5;
+        o.tolerance = 0.0;
+        return o;
+    };
+    const auto cornell = [] { return test::canonicalScene("cornell", 28); };
+    const auto sphere = [](float albedo) { return test::canonicalScene("furnace-sphere", 20,
+        albedo); };
+    struct Variant
+    {
+        std::string name;
+        std::function<void(RadiosityOptions&)> set;
+    };
+    const std::vector<Variant> variants = {
+        {"inplace", [](RadiosityOptions&) {}},
+        {"inplace-cache", [](RadiosityOptions& o) { o.visibilityCache = size_t(1) << 30; }},
+        {"inplace-cache-part", [](RadiosityOptions& o) { o.visibilityCache = 40000; }},
+        {"jacobi", [](RadiosityOptions& o) { o.update = UpdateScheme::Jacobi; }},
+        {"jacobi-cache", [](RadiosityOptions& o) {
+            o.update = UpdateScheme::Jacobi;
+            o.visibilityCache = size_t(1) << 30;
+        }},
+        {"progressive", [](RadiosityOptions& o) { o.update = UpdateScheme::Progressive; }},
+        {"anderson", [](RadiosityOptions& o) { o.accelerate = Acceleration::Anderson; }},
+        {"anderson-cache", [](RadiosityOptions& o) {
+            o.accelerate = Acceleration::Anderson;
+            o.andersonDepth = 2;
+            o.visibilityCache = size_t(1) << 30;
+        }},
+        {"standard", [](RadiosityOptions& o) { o.lines = LineType::Standard; }},
+        {"standard-cache", [](RadiosityOptions& o) {
+            o.lines = LineType::Standard;
+            o.visibilityCache = size_t(1) << 30;
+        }},
+        {"double", [](RadiosityOptions& o) { o.precision = Precision::Double; }},
+        {"raycast", [](RadiosityOptions& o) { o.visibility = Visibility::RayCast; }},
+    };
+    for (const Variant& v : variants) {
+        all.push_back({"cornell-rgb-" + v.name, [=] {
+            RadiosityOptions o = base();
+            v.set(o);
+            return surface(cornell(), o);
+        }});
+        all.push_back({"sphere-grey-" + v.name, [=] {
+            RadiosityOptions o = base();
+            v.set(o);
+            return surface(sphere(-1.f), o);
+        }});
+    }
+    // Albedo above 0.999: double precision by default, with and without Anderson.
+    all.push_back({"sphere-grey-auto-double", [=] {
+        RadiosityOptions o = base();
+        return surface(sphere(0.9995f), o);
+    }});
+    all.push_back({"sphere-grey-auto-double-anderson-cache", [=] {
+        RadiosityOptions o = base();
+        o.accelerate = Acceleration::Anderson;
+        o.visibilityCache = size_t(1) << 30;
+        return surface(sphere(0.9995f), o);
+    }});
+    all.push_back({"disk-grey-progressive-cache", [=] {
+        RadiosityOptions o = base();
+        o.update = UpdateScheme::Progressive;
+        o.visibilityCache = size_t(1) << 30;
+        return surface(test::canonicalScene("disk", 24), o);
+    }});
+    all.push_back({"plates-grey-jacobi", [=] {
+        RadiosityOptions o = base();
+        o.update = UpdateScheme::Jacobi;
+        return surface(test::canonicalScene("plates", 24), o);
+    }});
+
+    // Clouds.
+    auto cbase = [] {
+        CloudTransferOptions o;
+        o.directions = 80;
+        o.maxIterations = 6;
+        o.tolerance = 0.0;
+        o.sunZenith = 30.0;
+        o.sunAzimuth = 20.0;
+        return o;
+    };
+    all.push_back({"slab-isotropic-periodic", [=] {
+        CloudTransferOptions o = cbase();
+        o.periodic = true;
+        return cloud("slab", 16, o);
+    }});
+    all.push_back({"slab-hg-periodic", [=] {
+        CloudTransferOptions o = cbase();
+        o.periodic = true;
+        o.phase = PhaseFunction::henyeyGreenstein(0.85);
+        o.phaseOrder = 6;
+        return cloud("slab", 16, o);
+    }});
+    all.push_back({"slab-isotropic-periodic-copies", [=] {
+        CloudTransferOptions o = cbase();
+        o.periodic = true;
+        o.minPeriod = 20;
+        return cloud("slab", 8, o, 0.9f);
+    }});
+    all.push_back({"slab-isotropic-periodic-anderson", [=] {
+        CloudTransferOptions o = cbase();
+        o.periodic = true;
+        o.accelerate = Acceleration::Anderson;
+        o.sunZenith = 0.0;
+        return cloud("slab", 16, o);
+    }});
+    all.push_back({"cumulus-isotropic-open", [=] {
+        CloudTransferOptions o = cbase();
+        return cloud("cumulus", 16, o);
+    }});
+    all.push_back({"cumulus-hg-open-anderson", [=] {
+        CloudTransferOptions o = cbase();
+        o.phase = PhaseFunction::henyeyGreenstein(0.6);
+        o.phaseOrder = 4;
+        o.accelerate = Acceleration::Anderson;
+        o.andersonDepth = 4;
+        return cloud("cumulus", 16, o, 0.95f);
+    }});
+
+    // Monte Carlo: stored rays, iterations, a final gather.
+    all.push_back({"cornell-rgb-montecarlo", [] {
+        const Scene scene = test::canonicalScene("cornell", 16);
+        MonteCarloOptions o;
+        o.samples = 24;
+        o.maxIterations = 4;
+        o.tolerance = 0.0;
+        MonteCarloSolver solver(scene, o);
+        solver.solve();
+        uint64_t h = hashOf(solver.rgb(), hashBytes("montecarlo", 10));
+        solver.finalGather(16);
+        h = hashOf(solver.rgb(), h);
+        return hashOf(solver.rgbError(), h);
+    }});
+    return all;
+}
+
+std::map<std::string, std::string>
+readGolden(const char* path)
+{
+    std::map<std::string, std::string> golden;
+    std::ifstream in(path);
+    for (std::string name, hash; in >> name >> hash;) golden[name] = hash;
+    return golden;
+}
+
+class GoldenTest : public ::testing::Test
+{
+protected:
+    static void SetUpTestSuite() { openvdb::initialize(); }
+};
+
+} // namespace
+
+TEST_F(GoldenTest, EverySolverVariantGivesItsRecordedBits)
+{
+    const std::vector<Case> all = cases();
+    const char* update = std::getenv("VDBRAD_UPDATE_GOLDEN");
+    if (update && std::string(update) == "1") {
+        std::ofstream out(kGoldenFile);
+        for (const Case& c : all) out << c.name << " " << hex(c.run()) << "\n";
+        ASSERT_TRUE(out.good()) << "cannot write " << kGoldenFile;
+        return;
+    }
+    const std::map<std::string, std::string> golden = readGolden(kGoldenFile);
+    ASSERT_EQ(golden.size(), all.size()) << kGoldenFile << " does not list every case";
+    for (const Case& c : all) {
+        const auto it = golden.find(c.name);
+        ASSERT_NE(it, golden.end()) << c.name << " is not in " << kGoldenFile;
+        EXPECT_EQ(hex(c.run()), it->second) << c.name << ": the output bits changed";
+    }
+}
+
+namespace {
+
+// The values of every float or Vec3f grid of a file, in grid name order, hashed.
+uint64_t
+hashFile(const std::string& path)
+{
+    openvdb::io::File file(path);
+    file.open();
+    openvdb::GridPtrVecPtr grids = file.getGrids();
+    file.close();
+    std::map<std::string, openvdb::GridBase::Ptr> byName;
+    for (const auto& g : *grids) byName[g->getName()] = g;
+    uint64_t h = hashBytes("file", 4);
+    for (const auto& [name, g] : byName) {
+        if (name != "radiosity" && name != "mean_intensity") continue;
+        h = hashBytes(name.data(), name.size(), h);
+        if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(g)) {
+            for (auto it = f->cbeginValueOn(); it; ++it) {
+                const float v = *it;
+                const openvdb::Coord c = it.getCoord();
+                h = hashBytes(&c, sizeof c, h);
+                h = hashBytes(&v, sizeof v, h);
+            }
+        } else if (auto r = openvdb::gridPtrCast<openvdb::Vec3SGrid>(g)) {
+            for (auto it = r->cbeginValueOn(); it; ++it) {
+                const openvdb::Vec3f v = *it;
+                const openvdb::Coord c = it.getCoord();
+                h = hashBytes(&c, sizeof c, h);
+                h = hashBytes(&v, sizeof v, h);
+            }
+        }
+    }
+    return h;
+}
+
+class GoldenToolTest : public test::ToolTest {};
+
+} // namespace
+
+// The tool's solves, a checkpointed and resumed one among them, give the recorded bits too.
+TEST_F(GoldenToolTest, ToolSolvesGiveTheirRecordedBits)
+{
+    const std::vector<std::pair<std::string, std::string>> runs = {
+        {"tool-solve", "vdbrad make cornell c.vdb --res 24 && vdbrad solve c.vdb o.vdb "
+            "--directions 100 --tolerance 1e-4 --quiet"},
+        {"tool-solve-50", "vdbrad make cornell c.vdb --res 24 && vdbrad solve c.vdb o.vdb "
+            "--directions 100 --tolerance 0 --iterations 50 --quiet"},
+        // Killed (SIGTERM) once its first checkpoint exists, then resumed: tool-solve-50's bits.
+        {"tool-solve-resumed", "vdbrad make cornell c.vdb --res 24 && "
+            "{ vdbrad solve c.vdb x.vdb --directions 100 --tolerance 0 --iterations 50 "
+            "--checkpoint k.ck --checkpoint-every 2 --quiet & pid=$!; "
+            "while [ ! -f k.ck ] && kill -0 $pid 2> /dev/null; do sleep 0.01; done; "
+            "kill $pid 2> /dev/null; wait $pid; test -f k.ck && vdbrad solve c.vdb o.vdb "
+            "--directions 100 --tolerance 0 --iterations 50 --resume k.ck --quiet; }"},
+        {"tool-solve-cloud", "vdbrad make slab s.vdb --res 12 && vdbrad solve-cloud s.vdb o.vdb "
+            "--directions 60 --periodic --iterations 8 --quiet"},
+    };
+    const char* update = std::getenv("VDBRAD_UPDATE_GOLDEN");
+    const std::map<std::string, std::string> golden = readGolden(kToolGoldenFile);
+    std::ostringstream lines;
+    for (const auto& [name, cmd] : runs) {
+        std::system(("rm -f '" + path("o.vdb") + "'").c_str());
+        const test::ToolResult r = sh(cmd);
+        ASSERT_EQ(r.status, 0) << name << ": " << r.err;
+        const std::string h = hex(hashFile(path("o.vdb")));
+        if (update && std::string(update) == "1") {
+            lines << name << " " << h << "\n";
+            continue;
+        }
+        // The resumed solve computes what the uninterrupted one did.
+        const auto it = golden.find(name == "tool-solve-resumed" ? "tool-solve-50" : name);
+        ASSERT_NE(it, golden.end()) << name << " is not in " << kToolGoldenFile;
+        EXPECT_EQ(h, it->second) << name << ": the tool's output bits changed";
+    }
+    if (update && std::string(update) == "1") {
+        std::ofstream out(kToolGoldenFile);
+        out << lines.str();
+        ASSERT_TRUE(out.good()) << "cannot write " << kToolGoldenFile;
+    }
+}
