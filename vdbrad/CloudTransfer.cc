@@ -2,12 +2,14 @@
 
 #include "vdbrad/Denormals.h"
 #include "vdbrad/Errors.h"
-#include "vdbrad/LeafOrder.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/OutputGrids.h"
+#include "vdbrad/PeriodicBoundary.h"
 #include "vdbrad/PhaseFunction.h"
 #include "vdbrad/SolarBeam.h"
+#include "vdbrad/SweepSchedule.h"
+#include "vdbrad/TextFormat.h"
 #include "vdbrad/Version.h"
 
 #include <tbb/blocked_range.h>
@@ -18,6 +20,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <sstream>
 
 namespace vdbrad {
 
@@ -27,10 +30,6 @@ using openvdb::Coord;
 using openvdb::Vec3d;
 
 constexpr double kPi = 3.14159265358979323846;
-// Periodic boundaries: wrap-around passes per direction and iteration before the rest of the
-// wrapping light is carried over to the next iteration.
-constexpr int kMaxWraps = 64;
-
 // Across a step of optical depth tau: the absorbed fraction 1 - e^-tau and the mean factor
 // (1 - e^-tau) / tau, with one exponential, and without cancellation for thin voxels. The
 // radiance is updated as L += (S - L) (1 - e^-tau) rather than S + (L - S) e^-tau: at tau = 1e-8
@@ -58,28 +57,6 @@ struct Ray
     uint32_t last = 0;
 };
 
-// The side face a ray through index point p along unit t crosses first going backwards (-t)
-// (entering) or forwards (+t) (leaving), over the box [lo, hi]: 2 * axis + (0: low, 1: high), or
-// -1 if it is the top or bottom; and the up coordinate of the crossing.
-int
-crossedSide(const Vec3d& p, const Vec3d& t, const Vec3d& lo, const Vec3d& hi, int up,
-    double& height)
-{
-    double best = 1e300;
-    int face = -1;
-    for (int k = 0; k < 3; ++k) {
-        if (t[k] == 0.0) continue;
-        const double bound = t[k] > 0.0 ? hi[k] : lo[k];
-        const double s = (bound - p[k]) / t[k];
-        if (s < best) {
-            best = s;
-            face = 2 * k + (t[k] > 0.0 ? 1 : 0);
-        }
-    }
-    height = p[up] + best * t[up];
-    return face / 2 == up ? -1 : face;
-}
-
 // A naive line of direction sigma advances one voxel per step along its major axis: the step is
 // |sigma| / max_k |sigma_k| voxels long (float: the sweeps' and the self-scattering factors'
 // optical depths must be the same numbers).
@@ -96,7 +73,7 @@ stepLength(const Coord& sigma)
 
 struct CloudTransfer::Impl
 {
-    static constexpr int kGroups = 8;   // fixed: results do not depend on the thread count
+    static constexpr int kGroups = SweepSchedule::kGroups;
 
     size_t n = 0;
     // A narrow periodic box is solved as copies side by side (periodicCopies()): that medium,
@@ -118,148 +95,41 @@ struct CloudTransfer::Impl
     std::vector<double> chi;         // delta-M scaled Legendre coefficients, l = 0..K
     std::vector<float> moments;      // diffuse I_lm per voxel (n x M), from the last sweep
     std::unique_ptr<AndersonMixer> mixer;   // Acceleration::Anderson only
-    // First scattering of the beam, per direction and sense: the full phase function (not its
-    // truncation) divided by 1 - f, less the forward fraction f delta-M keeps in the beam, taken
-    // from the directions closest to the beam's, so that sum_s Omega_s T_s = 4 pi exactly. A
-    // voxel's source is then omega0' J_beam T_s (DISORT's TMS idea, applied to the source).
-    std::vector<float> beamTable;
-    // Per direction and sense (2 d + sense), Y_lm of the direction of travel: moments are
-    // accumulated and sources evaluated with them.
-    std::vector<float> yAccumulate;
-    // Mean of Y_lm over the direction set (its solid-angle weights integrate high orders only
-    // roughly: Y_00 exactly, order 8 a few per cent off).
-    std::vector<double> quadratureMean;
+    // The phase function on the directions: harmonics per direction and sense, their
+    // quadrature means, the beam's first scattering (PhaseFunction::Tables).
+    PhaseFunction::Tables phase;
 
-    struct Pattern
+    std::unique_ptr<SweepSchedule> schedule;
+    std::array<std::vector<float>, SweepSchedule::kPatterns> kappaOrdered;   // per pattern
+    mutable SweepSchedule::PerThread<LineSweep::Lanes<Ray>> lanes;   // per thread, reused
+    // Periodic boundaries (null: open): the side faces, and per direction slice the power
+    // that left each face per layer in the last sweep, carried over to the next.
+    std::unique_ptr<PeriodicBoundary> boundary;
+    std::vector<double> leftFace;
+
+    // The sweeps of one iteration: every group's directions, from the sources S (n x M moments'
+    // coefficients) and B (the beam's first scattering) in each pattern's order, into the
+    // groups' moment sums G; light leaving the box goes to escaped (0 down, 1 up), light
+    // wrapping around a periodic box to leftNow.
+    struct Sweep
     {
-        std::vector<size_t> directions;
-        std::vector<uint32_t> order;     // voxel index of the k-th visited voxel
-        std::vector<float> kappa;        // in visiting order
-        std::unique_ptr<LineSweep> sweep;
+        const std::array<std::vector<float>, SweepSchedule::kPatterns>& S;
+        const std::array<std::vector<float>, SweepSchedule::kPatterns>& B;
+        std::array<std::vector<float>, SweepSchedule::kGroups> G;
+        std::array<std::array<double, 2>, SweepSchedule::kGroups> escaped{};
+        std::vector<double> leftNow;
     };
-    std::array<Pattern, 4> patterns;
-    std::vector<char> reversed;
-
-    // Periodic boundaries, per direction and sense: power that left each side face per voxel
-    // layer in the last sweep, and how many lines enter through each side face per layer.
-    Vec3d lo, hi;
-    Coord boxMin, boxMax;
-    int layers = 0, layer0 = 0;
-    int up = 1;
-    std::vector<double> leftFace;    // [dir][sense][face 0..5][layer]: power carried over
-    std::vector<uint32_t> enterCount;
-    size_t faceIndex(size_t dir, int sense, int face, int layer) const
-    {
-        return ((dir * 2 + size_t(sense)) * 6 + size_t(face)) * size_t(layers) + size_t(layer);
-    }
-    int layerOf(double height) const
-    {
-        return std::clamp(int(std::floor(height + 0.5)) - layer0, 0, layers - 1);
-    }
-    // Slot (within a direction's slice) of the side face and layer a line whose first voxel is
-    // at p enters through, light travelling along t; -1: it enters through the top or bottom.
-    int entrySlot(const Vec3d& p, const Vec3d& t, bool forward) const
-    {
-        double height = 0.0;
-        const int face = crossedSide(p, -t, lo, hi, up, height);
-        return face < 0 ? -1 : ((forward ? 0 : 1) * 6 + face) * layers + layerOf(height);
-    }
-    // Likewise for the face a line whose last voxel is at p leaves through.
-    int exitSlot(const Vec3d& p, const Vec3d& t, bool forward) const
-    {
-        double height = 0.0;
-        const int face = crossedSide(p, t, lo, hi, up, height);
-        return face < 0 ? -1 : ((forward ? 0 : 1) * 6 + face) * layers + layerOf(height);
-    }
-    // Slot of the side face and layer that the digital step from voxel a (in the box) to its
-    // neighbour b on the line (outside) crosses: the step's midpoint height, so that the light
-    // leaving one face and the lines entering the opposite one are matched without a bias (a
-    // voxel centre can lie up to 1/2 voxel off the line's axis, which projected along a steep
-    // direction moved light several layers down per wrap). -1: b is above or below the box.
-    int stepSlot(const Coord& a, const Coord& b, bool forward) const
-    {
-        if (b[up] < boxMin[up] || b[up] > boxMax[up]) return -1;
-        int face = -1;
-        for (int k = 0; k < 3 && face < 0; ++k) {
-            if (k == up) continue;
-            if (b[k] > boxMax[k]) face = 2 * k + 1;
-            else if (b[k] < boxMin[k]) face = 2 * k;
-        }
-        if (face < 0) return -2;   // b is inside the box (a sparse medium): no face here
-        return ((forward ? 0 : 1) * 6 + face) * layers + layerOf(0.5 * (a[up] + b[up]));
-    }
-    // Slots where the line whose first voxel is `first` enters, and where the line whose last
-    // voxel is `last` leaves, travelling along t (the pass's sense); by the digital step where
-    // there is one, else by projecting the voxel centre.
-    int entering(const LinePartition& part, const Coord& sigma, const Coord& first, const Vec3d& t,
-        bool forward) const
-    {
-        Coord prev;
-        if (stepAlong(part, sigma, first, forward ? -1 : 1, prev)) {
-            const int slot = stepSlot(first, prev, forward);
-            if (slot != -2) return slot;
-        }
-        return entrySlot(first.asVec3d(), t, forward);
-    }
-    int leaving(const LinePartition& part, const Coord& sigma, const Coord& last, const Vec3d& t,
-        bool forward) const
-    {
-        Coord next;
-        if (stepAlong(part, sigma, last, forward ? 1 : -1, next)) {
-            const int slot = stepSlot(last, next, forward);
-            if (slot != -2) return slot;
-        }
-        return exitSlot(last.asVec3d(), t, forward);
-    }
-    // The neighbour of c on its line, one step along +sigma (dir 1) or -sigma (dir -1): a naive
-    // line has one voxel per major coordinate, so it is one of four candidates. Returns false
-    // where the line has no voxel there (a centred partition's central line at its bound).
-    static bool stepAlong(const LinePartition& part, const Coord& sigma, const Coord& c, int dir,
-        Coord& out)
-    {
-        const int major = part.majorAxis();
-        const LineKey key = part.key(c);
-        Coord base = c;
-        base[major] += dir * (sigma[major] > 0 ? 1 : -1);
-        int minor[2], n = 0;
-        for (int k = 0; k < 3; ++k) if (k != major) minor[n++] = k;
-        for (int d1 = 0; d1 < 2; ++d1) {
-            if (d1 && sigma[minor[0]] == 0) continue;
-            for (int d2 = 0; d2 < 2; ++d2) {
-                if (d2 && sigma[minor[1]] == 0) continue;
-                Coord q = base;
-                q[minor[0]] += dir * d1 * (sigma[minor[0]] > 0 ? 1 : -1);
-                q[minor[1]] += dir * d2 * (sigma[minor[1]] > 0 ? 1 : -1);
-                if (part.key(q) == key) { out = q; return true; }
-            }
-        }
-        return false;
-    }
-    // The slot light leaving through slot e re-enters by: the opposite face, same sense, layer.
-    size_t oppositeSlot(size_t e) const
-    {
-        const size_t layer = e % size_t(layers), sf = e / size_t(layers);
-        return ((sf / 6) * 6 + ((sf % 6) ^ 1)) * size_t(layers) + layer;
-    }
-
-    // Directions of group g: pattern g / 2, every other one.
-    template<typename F>
-    void forDirections(int g, F&& f) const
-    {
-        const Pattern& p = patterns[size_t(g / 2)];
-        for (size_t i = size_t(g % 2); i < p.directions.size(); i += 2) f(p.directions[i]);
-    }
+    void sweepDirection(const CloudTransfer& t, int g, size_t d, Sweep& sweep) const;
 };
 
 CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt)
-    : mCloud(given), mOptions(options), mImpl(new Impl)
+    : mCloud(given), mOptions(options)
+    , mIteration(options.maxIterations, options.tolerance, options.accelerate,
+          options.andersonDepth)
+    , mImpl(new Impl)
 {
     const auto start = std::chrono::steady_clock::now();
-    if (options.maxIterations < 1) {
-        OPENVDB_THROW(openvdb::ValueError, "iterations must be >= 1, got " << options.maxIterations);
-    }
-    if (!(options.tolerance >= 0.0)) OPENVDB_THROW(openvdb::ValueError, "tolerance must be >= 0");
     if (!(options.sunZenith >= 0.0 && options.sunZenith <= 89.9)) {
         OPENVDB_THROW(openvdb::ValueError, "sun zenith angle must be in [0, 89.9] degrees, got "
             << options.sunZenith);
@@ -268,10 +138,6 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         OPENVDB_THROW(openvdb::ValueError, "sun azimuth must be finite");
     }
     if (options.up < 0 || options.up > 2) OPENVDB_THROW(openvdb::ValueError, "up must be 0, 1 or 2");
-    if (options.accelerate == Acceleration::Anderson && options.andersonDepth < 1) {
-        OPENVDB_THROW(openvdb::ValueError, "Anderson depth must be >= 1, got "
-            << options.andersonDepth);
-    }
     if (options.minPeriod < -1) {
         OPENVDB_THROW(openvdb::ValueError, "minimum period must be >= 0 voxels (or -1: auto), got "
             << options.minPeriod);
@@ -280,9 +146,9 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         OPENVDB_THROW(openvdb::ValueError, "RGB single-scattering albedo is not supported yet; "
             "give a float albedo grid");
     }
-    mDirections = DirectionSet::fromCount(options.directions);
+    DirectionSet directions = DirectionSet::fromCount(options.directions);
     Impl& impl = *mImpl;
-    mCopies = copiesFor(given, options, mDirections.size());
+    mCopies = copiesFor(given, options, directions.size());
     if (mCopies != Coord(1)) impl.tiled.reset(new Cloud(tileCloud(given, mCopies, &impl.copyOf)));
     // From here on, the medium solved.
     const Cloud& cloud = impl.tiled ? *impl.tiled : given;
@@ -345,113 +211,24 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     }
     impl.diffuseJ.assign(n, 0.f);
     impl.moments.assign(n * size_t(impl.M), 0.f);
-    {
-        const size_t M = size_t(impl.M), dirs = mDirections.size();
-        std::vector<double> y(M);
-        impl.yAccumulate.resize(dirs * 2 * M);
-        std::vector<double> mean(M, 0.0);
-        for (size_t d = 0; d < dirs; ++d) {
-            const double omega = kPi * mDirections.factor(d);
-            for (int sense = 0; sense < 2; ++sense) {
-                realSphericalHarmonics(order, sense == 0 ? mDirections.unit(d) : -mDirections.unit(d),
-                    y.data());
-                for (size_t lm = 0; lm < M; ++lm) {
-                    impl.yAccumulate[(2 * d + size_t(sense)) * M + lm] = float(y[lm]);
-                    mean[lm] += omega * y[lm] / (4.0 * kPi);
-                }
-            }
-        }
-        impl.quadratureMean = mean;
+    impl.phase = options.phase.tables(directions, order, (-toSun).unit());
 
-        const Vec3d beam = (-toSun).unit();
-        std::vector<double> weight(dirs * 2);
-        std::vector<std::pair<double, size_t>> byAngle(dirs * 2);
-        for (size_t e = 0; e < dirs * 2; ++e) {
-            const Vec3d s = (e % 2 == 0 ? 1.0 : -1.0) * mDirections.unit(e / 2);
-            const double mu = std::clamp(s.dot(beam), -1.0, 1.0);
-            weight[e] = kPi * mDirections.factor(e / 2) * options.phase.value(mu)
-                / (4.0 * kPi * (1.0 - trunc.f));
-            byAngle[e] = {-mu, e};
-        }
-        std::sort(byAngle.begin(), byAngle.end());
-        // The sampled weights add up to about 1 + f / (1 - f): the forward part delta-M keeps
-        // in the beam, plus the quadrature error of the sharp forward peak. Both live in the
-        // forward cone, so the directions closest to the beam absorb the difference to exactly
-        // 1, and the side and backward weights stay the phase function's own.
-        double excess = -1.0;
-        for (double w : weight) excess += w;
-        for (const auto& [negMu, e] : byAngle) {
-            if (excess <= 0.0) break;
-            const double take = std::min(excess, weight[e]);
-            weight[e] -= take;
-            excess -= take;
-        }
-        if (excess < 0.0) weight[byAngle.front().second] -= excess;
-        const double total = 1.0;
-        impl.beamTable.resize(dirs * 2);
-        for (size_t e = 0; e < dirs * 2; ++e) {
-            impl.beamTable[e] = float(4.0 * kPi * weight[e] / total
-                / (kPi * mDirections.factor(e / 2)));
+    // Sweep orders: naive lines (their steps have exact lengths).
+    const size_t dirs = directions.size();
+    impl.schedule.reset(new SweepSchedule(cloud.voxels(), std::move(directions),
+        SweepSchedule::Layout()));
+    const SweepSchedule& schedule = *impl.schedule;
+    for (size_t p = 0; p < impl.kappaOrdered.size(); ++p) {
+        if (!schedule.pattern(p).empty()) {
+            schedule.toPatternOrder(p, impl.kappa, impl.kappaOrdered[p]);
         }
     }
-
-    // Sweep orders: one per base sign pattern, naive lines (their steps have exact lengths).
-    const size_t dirs = mDirections.size();
-    LeafOrder::Patterns dealt = LeafOrder::patterns(dirs,
-        [&](size_t k) { return mDirections.direction(k); });
-    impl.reversed = std::move(dealt.reversed);
-    for (size_t p = 0; p < 4; ++p) {
-        Impl::Pattern& pattern = impl.patterns[p];
-        pattern.directions = std::move(dealt.directions[p]);
-        if (pattern.directions.empty()) continue;
-        const LeafOrder order(cloud.voxels(), dealt.signs[p]);
-        pattern.order = order.voxels();
-        pattern.kappa.resize(n);
-        for (size_t k = 0; k < n; ++k) pattern.kappa[k] = impl.kappa[pattern.order[k]];
-        pattern.sweep.reset(new LineSweep(cloud.voxels(), order, nullptr, LineType::Naive));
-    }
-    const openvdb::CoordBBox box = cloud.voxels().bbox();
-    impl.boxMin = box.min();
-    impl.boxMax = box.max();
-    impl.lo = box.min().asVec3d() - Vec3d(0.5);
-    impl.hi = box.max().asVec3d() + Vec3d(0.5);
-    impl.up = up;
     if (options.periodic) {
-        impl.layer0 = box.min()[up];
-        impl.layers = box.max()[up] - box.min()[up] + 1;
-        impl.leftFace.assign(dirs * 2 * 6 * size_t(impl.layers), 0.0);
-        impl.enterCount.assign(impl.leftFace.size(), 0);
-        // How many lines enter through each side face per layer: geometry only, one walk per
-        // direction (each direction counts into its own slice: no races).
-        tbb::parallel_for(tbb::blocked_range<int>(0, Impl::kGroups, 1),
-            [&](const tbb::blocked_range<int>& r) {
-                for (int g = r.begin(); g != r.end(); ++g) {
-                    const Impl::Pattern& pattern = impl.patterns[size_t(g / 2)];
-                    if (pattern.directions.empty()) continue;
-                    LineSweep::Lanes<Ray> lanes;
-                    impl.forDirections(g, [&](size_t d) {
-                        const Vec3d unit = mDirections.unit(d);
-                        const size_t slice = impl.faceIndex(d, 0, 0, 0);
-                        LinePartition part(mDirections.direction(d), LineType::Naive);
-                        part.centreOn(impl.boxMin + impl.boxMax);
-                        pattern.sweep->walk(mDirections.direction(d), impl.reversed[d] != 0, lanes,
-                            [&](uint32_t x, Ray& ray, bool forward) {
-                                if (ray.started) return;
-                                ray.started = true;
-                                const int at = impl.entering(part, mDirections.direction(d),
-                                    pattern.sweep->coord(x), forward ? unit : -unit, forward);
-                                if (at >= 0) ++impl.enterCount[slice + size_t(at)];
-                            },
-                            [](const Ray*, size_t, bool) {});
-                    });
-                }
-            });
+        impl.boundary.reset(new PeriodicBoundary(cloud.voxels().bbox(), up, schedule));
+        impl.leftFace.assign(impl.boundary->size(), 0.0);
     }
-    if (options.accelerate == Acceleration::Anderson) {
-        // The moments and the light carried across periodic side faces (see iterate()).
-        impl.mixer.reset(new AndersonMixer(n * size_t(impl.M) + impl.leftFace.size(),
-            options.andersonDepth));
-    }
+    // The moments and the light carried across periodic side faces (see iterate()).
+    impl.mixer = mIteration.makeMixer<float>(n * size_t(impl.M) + impl.leftFace.size());
     // Escape factors for the self-scattering elimination (iterate()): per direction, the float
     // step and the weight Omega (Y_00^2 of both senses) the sweeps use; voxels of equal kappa
     // (a homogeneous cloud) share one sum.
@@ -459,10 +236,11 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         std::vector<float> step(dirs);
         std::vector<double> weight(dirs);
         const size_t M = size_t(impl.M);
+        const std::vector<float>& y = impl.phase.harmonics;
         for (size_t d = 0; d < dirs; ++d) {
-            step[d] = stepLength(mDirections.direction(d));
-            const double y0 = impl.yAccumulate[2 * d * M], y1 = impl.yAccumulate[(2 * d + 1) * M];
-            weight[d] = double(float(kPi * mDirections.factor(d))) * (y0 * y0 + y1 * y1);
+            step[d] = stepLength(schedule.directions().direction(d));
+            const double y0 = y[2 * d * M], y1 = y[(2 * d + 1) * M];
+            weight[d] = double(float(kPi * schedule.directions().factor(d))) * (y0 * y0 + y1 * y1);
         }
         impl.escape.resize(n);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
@@ -484,10 +262,17 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
                 }
             });
     }
-    mSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    mIteration.addSeconds(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
 
 CloudTransfer::~CloudTransfer() = default;
+
+const DirectionSet&
+CloudTransfer::directions() const
+{
+    return mImpl->schedule->directions();
+}
 
 Coord
 CloudTransfer::periodicCopies(const Cloud& cloud, const CloudTransferOptions& options)
@@ -519,24 +304,127 @@ CloudTransfer::copiesFor(const Cloud& cloud, const CloudTransferOptions& options
     return copies;
 }
 
-bool
-CloudTransfer::converged() const
+// Direction d of group g, both senses: the pass with the sources, then (periodic) the passes
+// of the light wrapping around the period.
+void
+CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Sweep& sw) const
 {
-    return !mResiduals.empty() && mResiduals.back() <= mOptions.tolerance;
+    const size_t p = SweepSchedule::patternOf(g), M = size_t(this->M);
+    const SweepSchedule::Pattern& pattern = schedule->pattern(p);
+    const std::vector<float>& S = sw.S[p];
+    const std::vector<float>& B = sw.B[p];
+    const std::vector<float>& kappaP = kappaOrdered[p];
+    std::vector<float>& G = sw.G[size_t(g)];
+    std::array<double, 2>& escaped = sw.escaped[size_t(g)];
+    const int up = t.mOptions.up;
+    const Coord& sigma = schedule->directions().direction(d);
+    const Vec3d unit = schedule->directions().unit(d);
+    // A naive line's step, in voxels, and its tube's etendue (cross-section 1 / step voxel
+    // faces times the solid angle of one orientation).
+    const float step = stepLength(sigma);
+    const float omega = float(kPi * schedule->directions().factor(d));
+    const double etendue = double(omega) / double(step);
+    // Periodic: power entering each side face per layer (what left the opposite face), and
+    // what leaves this pass.
+    const PeriodicBoundary* periodic = boundary.get();
+    std::vector<double> entry, exits;
+    LinePartition part(sigma, LineType::Naive);
+    if (periodic) {
+        entry.assign(leftFace.begin() + long(periodic->slice(d)),
+            leftFace.begin() + long(periodic->slice(d) + periodic->sliceSize()));
+        exits.assign(periodic->sliceSize(), 0.0);
+        part = periodic->partition(sigma);
+    }
+    const float beamT[2] = {phase.beam[2 * d], phase.beam[2 * d + 1]};
+    const float* yAcc[2] = {&phase.harmonics[2 * d * M], &phase.harmonics[(2 * d + 1) * M]};
+    LineSweep::Lanes<Ray>& work = lanes.local();
+    auto pass = [&](bool sources) {
+        std::fill(exits.begin(), exits.end(), 0.0);
+        pattern.sweep->walk(sigma, schedule->reversed(d), work,
+            [&](uint32_t x, Ray& ray, bool forward) {
+                if (!ray.started) {
+                    ray.started = true;
+                    if (periodic) {
+                        const int at = periodic->entering(part, sigma, pattern.sweep->coord(x),
+                            forward ? unit : -unit, forward);
+                        if (at >= 0) {
+                            const uint32_t c = periodic->enterCount(d, size_t(at));
+                            ray.radiance = float(entry[size_t(at)] / c / etendue);
+                        }
+                    }
+                }
+                ray.last = x;
+                float absorb, mean;
+                stepFactors(kappaP[x] * step, absorb, mean);
+                const size_t sense = forward ? 0 : 1;
+                const float* y = yAcc[sense];
+                // The source: its isotropic part s0, its higher moments' part r and the beam's
+                // first scattering b.
+                float s0 = 0.f, r = 0.f, b = 0.f;
+                if (sources) {
+                    const float* c = &S[size_t(x) * M];
+                    s0 = c[0] * y[0];
+                    for (size_t lm = 1; lm < M; ++lm) r += c[lm] * y[lm];
+                    b = B[x] * beamT[sense];
+                }
+                const float s = s0 + r + b;
+                // Mean over the step: s + (L - s) f. I_00 gathers only b + (L - b - r) f;
+                // iterate() adds the rest, s0 (1 - f) + r, summed over the directions in closed
+                // form (the self-scattering elimination), so that an opaque voxel's I_00 is not
+                // a small difference of floats.
+                const float rest = omega * (b + (ray.radiance - b - r) * mean);
+                float* acc = &G[size_t(x) * M];
+                acc[0] += rest * y[0];
+                if (M > 1) {
+                    const float lbar = omega * (s + (ray.radiance - s) * mean);
+                    for (size_t lm = 1; lm < M; ++lm) acc[lm] += lbar * y[lm];
+                }
+                ray.radiance += (s - ray.radiance) * absorb;
+            },
+            [&](const Ray* fronts, size_t lines, bool forward) {
+                const Vec3d dir = forward ? unit : -unit;
+                for (size_t l = 0; l < lines; ++l) {
+                    const Ray& ray = fronts[l];
+                    if (!ray.started || ray.radiance == 0.f) continue;
+                    const double power = double(ray.radiance) * etendue;
+                    if (periodic) {
+                        const int at = periodic->leaving(part, sigma,
+                            pattern.sweep->coord(ray.last), dir, forward);
+                        if (at >= 0) { exits[size_t(at)] += power; continue; }
+                    }
+                    if (dir[up] == 0.0) {
+                        escaped[0] += 0.5 * power;
+                        escaped[1] += 0.5 * power;
+                    } else {
+                        escaped[dir[up] > 0.0 ? 1 : 0] += power;
+                    }
+                }
+            });
+    };
+    pass(true);
+    if (periodic) {
+        periodic->followWraps(d, periodic->rise(schedule->directions(), d), unit[up], entry,
+            exits, [&] { pass(false); }, &sw.leftNow[periodic->slice(d)], escaped);
+    }
 }
 
 double
 CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
 {
-    const auto t0 = std::chrono::steady_clock::now();
+    return mIteration.iterate([&] { return sweep(interrupt); });
+}
+
+double
+CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
+{
     Impl& impl = *mImpl;
+    const SweepSchedule& schedule = *impl.schedule;
     const size_t n = impl.n;
-    const int up = mOptions.up;
-    const bool periodic = mOptions.periodic;
 
     // Source per voxel: omega0 chi_l times the moments of the diffuse radiance, so that
     // S(s) = sum_lm c_lm Y_lm(s), plus the beam's first scattering omega0 J_beam T(s).
     const size_t M = size_t(impl.M);
+    const std::vector<double>& quadratureMean = impl.phase.quadratureMean;
     std::vector<float> source(n * M), beamSource(n);
     // Anisotropic: (alpha - 1) omega0 I_00 per voxel, the part of the isotropic source that
     // alpha adds (see the self-scattering elimination below).
@@ -549,7 +437,7 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
                 const double w = double(impl.omega[i]) * impl.chi[size_t(l)];
                 for (int m = -l; m <= l; ++m, ++lm) {
                     c[size_t(lm)] = w * double(impl.moments[i * M + size_t(lm)]);
-                    total += c[size_t(lm)] * impl.quadratureMean[size_t(lm)];
+                    total += c[size_t(lm)] * quadratureMean[size_t(lm)];
                 }
             }
             // The direction set integrates this source to 4 pi x total, not exactly to its
@@ -557,224 +445,36 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
             // (Subtracting each harmonic's quadrature mean instead would spread the error
             // evenly over all directions: a forward peak then leaks into backscatter, +30%
             // slab albedo at order 16.)
-            const double target = c[0] * impl.quadratureMean[0];
+            const double target = c[0] * quadratureMean[0];
             const double alpha = total > 0.0 ? target / total : 1.0;
             for (size_t lm = 0; lm < M; ++lm) source[i * M + lm] = float(alpha * c[lm]);
             if (M > 1) isoExcess[i] = total > 0.0 ? (target - total) / total * c[0] : 0.0;
             beamSource[i] = impl.omega[i] * impl.beamJ[i];
         }
     });
-
-    std::array<std::vector<float>, Impl::kGroups> gathered;
-    std::array<std::array<double, 2>, Impl::kGroups> escaped{};   // [group][0 down, 1 up]
-    std::vector<double> leftNow(impl.leftFace.size(), 0.0);
-    std::atomic<bool> cancelled{false};
-    std::atomic<size_t> done{0};
-    const size_t dirs = mDirections.size();
-
-    tbb::parallel_for(tbb::blocked_range<int>(0, Impl::kGroups, 1),
-        [&](const tbb::blocked_range<int>& r) {
-            const ScopedFlushDenormals flush;   // Denormals.h
-            for (int g = r.begin(); g != r.end(); ++g) {
-                const Impl::Pattern& pattern = impl.patterns[size_t(g / 2)];
-                if (pattern.directions.empty()) continue;
-                std::vector<float> S(n * M), B(n);
-                for (size_t k = 0; k < n; ++k) {
-                    B[k] = beamSource[pattern.order[k]];
-                    std::copy_n(source.begin() + long(pattern.order[k] * M), M,
-                        S.begin() + long(k * M));
-                }
-                std::vector<float>& G = gathered[size_t(g)];
-                G.assign(n * M, 0.f);
-                LineSweep::Lanes<Ray> lanes;
-                impl.forDirections(g, [&](size_t d) {
-                    if (cancelled.load(std::memory_order_relaxed)) return;
-                    const Coord& sigma = mDirections.direction(d);
-                    const Vec3d unit = mDirections.unit(d);
-                    // A naive line's step, in voxels, and its tube's etendue (cross-section
-                    // 1 / step voxel faces times the solid angle of one orientation).
-                    const float step = stepLength(sigma);
-                    const float omega = float(kPi * mDirections.factor(d));
-                    const double etendue = double(omega) / double(step);
-                    const size_t slice = impl.faceIndex(d, 0, 0, 0);
-                    const size_t sliceSize = size_t(2 * 6 * impl.layers);
-                    // Periodic: power entering each side face per layer (what left the opposite
-                    // face), and what leaves this pass.
-                    std::vector<double> entry, exits(sliceSize, 0.0);
-                    if (periodic) {
-                        entry.assign(impl.leftFace.begin() + long(slice),
-                            impl.leftFace.begin() + long(slice + sliceSize));
-                    }
-                    LinePartition part(sigma, LineType::Naive);
-                    part.centreOn(impl.boxMin + impl.boxMax);
-                    const float beamT[2] = {impl.beamTable[2 * d], impl.beamTable[2 * d + 1]};
-                    const float* yAcc[2] = {&impl.yAccumulate[2 * d * M],
-                        &impl.yAccumulate[(2 * d + 1) * M]};
-                    // Exactly horizontal directions in a periodic box (see the file comment):
-                    // the rise per wrap, in layers, of either half of the direction's cell.
-                    double rise = 0.0;
-                    if (periodic && unit[up] == 0.0) {
-                        const int a1 = (up + 1) % 3, a2 = (up + 2) % 3;
-                        const double w1 = impl.boxMax[a1] - impl.boxMin[a1] + 1;
-                        const double w2 = impl.boxMax[a2] - impl.boxMin[a2] + 1;
-                        // Mean chord of the box's cross-section along the direction: its area
-                        // over its width seen from the direction.
-                        const double chord = w1 * w2
-                            / (w1 * std::abs(unit[a2]) + w2 * std::abs(unit[a1]));
-                        // The cell spans elevations up to beta = sqrt(Omega) / 2 either way;
-                        // its half's mean slope is tan(beta / 2).
-                        const double beta = 0.5 * std::sqrt(kPi * mDirections.factor(d));
-                        rise = chord * std::tan(0.5 * beta);
-                    }
-                    auto pass = [&](bool sources) {
-                        std::fill(exits.begin(), exits.end(), 0.0);
-                        pattern.sweep->walk(sigma, impl.reversed[d] != 0, lanes,
-                            [&](uint32_t x, Ray& ray, bool forward) {
-                                if (!ray.started) {
-                                    ray.started = true;
-                                    if (periodic) {
-                                        const Vec3d t = forward ? unit : -unit;
-                                        const int at = impl.entering(part, sigma,
-                                            pattern.sweep->coord(x), t, forward);
-                                        if (at >= 0) {
-                                            const uint32_t c = impl.enterCount[slice + size_t(at)];
-                                            ray.radiance = float(entry[size_t(at)] / c / etendue);
-                                        }
-                                    }
-                                }
-                                ray.last = x;
-                                float absorb, mean;
-                                stepFactors(pattern.kappa[x] * step, absorb, mean);
-                                const size_t sense = forward ? 0 : 1;
-                                const float* y = yAcc[sense];
-                                // The source: its isotropic part s0, its higher moments' part
-                                // r and the beam's first scattering b.
-                                float s0 = 0.f, r = 0.f, b = 0.f;
-                                if (sources) {
-                                    const float* c = &S[size_t(x) * M];
-                                    s0 = c[0] * y[0];
-                                    for (size_t lm = 1; lm < M; ++lm) r += c[lm] * y[lm];
-                                    b = B[x] * beamT[sense];
-                                }
-                                const float s = s0 + r + b;
-                                // Mean over the step: s + (L - s) f. I_00 gathers only
-                                // b + (L - b - r) f; iterate() adds the rest, s0 (1 - f) + r,
-                                // summed over the directions in closed form (the self-
-                                // scattering elimination), so that an opaque voxel's I_00 is
-                                // not a small difference of floats.
-                                const float rest = omega * (b + (ray.radiance - b - r) * mean);
-                                float* acc = &G[size_t(x) * M];
-                                acc[0] += rest * y[0];
-                                if (M > 1) {
-                                    const float lbar = omega * (s + (ray.radiance - s) * mean);
-                                    for (size_t lm = 1; lm < M; ++lm) acc[lm] += lbar * y[lm];
-                                }
-                                ray.radiance += (s - ray.radiance) * absorb;
-                            },
-                            [&](const Ray* fronts, size_t lines, bool forward) {
-                                const Vec3d t = forward ? unit : -unit;
-                                for (size_t l = 0; l < lines; ++l) {
-                                    const Ray& ray = fronts[l];
-                                    if (!ray.started || ray.radiance == 0.f) continue;
-                                    const double p = double(ray.radiance) * etendue;
-                                    if (periodic) {
-                                        const int at = impl.leaving(part, sigma,
-                                            pattern.sweep->coord(ray.last), t, forward);
-                                        if (at >= 0) { exits[size_t(at)] += p; continue; }
-                                    }
-                                    if (t[up] == 0.0) {
-                                        escaped[size_t(g)][0] += 0.5 * p;
-                                        escaped[size_t(g)][1] += 0.5 * p;
-                                    } else {
-                                        escaped[size_t(g)][t[up] > 0.0 ? 1 : 0] += p;
-                                    }
-                                }
-                            });
-                    };
-                    // What left a side face (exits, times share) enters through the opposite
-                    // one at the same height, unless no line enters there: then it has left for
-                    // good. Light of a horizontal direction's upper (drift 1) or lower (-1) half
-                    // cell enters `rise` layers higher or lower, split between the two nearest
-                    // layers; above the top or below the bottom it has left. Returns the power
-                    // that wraps.
-                    auto wrapAround = [&](double share, int drift, std::vector<double>& into) {
-                        double transit = 0.0;
-                        const double shift = drift * rise, whole = std::floor(shift);
-                        const double part[2] = {1.0 - (shift - whole), shift - whole};
-                        for (size_t e = 0; e < sliceSize; ++e) {
-                            if (exits[e] == 0.0) continue;
-                            const size_t to = impl.oppositeSlot(e);
-                            const int layer = int(to % size_t(impl.layers));
-                            for (int k = 0; k < 2; ++k) {
-                                const double p = share * exits[e] * part[k];
-                                if (p == 0.0) continue;
-                                const int at = layer + int(whole) + k;
-                                const size_t slot = to - size_t(layer) + size_t(at);
-                                if (at >= 0 && at < impl.layers
-                                    && impl.enterCount[slice + slot] > 0) {
-                                    into[slot] += p;
-                                    transit += p;
-                                } else {
-                                    const double tUp = drift != 0 ? double(drift)
-                                        : e < sliceSize / 2 ? unit[up] : -unit[up];
-                                    escaped[size_t(g)][tUp > 0.0 ? 1 : 0] += p;
-                                }
-                            }
-                        }
-                        return transit;
-                    };
-                    // First the sources and the light carried over from the last iteration;
-                    // then the light wrapping around the period is followed at once, pass after
-                    // pass, until what still wraps is negligible; the rest is carried over. A
-                    // horizontal direction's two half cells wrap separately, so that each keeps
-                    // drifting its own way.
-                    pass(true);
-                    if (periodic) {
-                        const int halves = rise > 0.0 ? 2 : 1;
-                        const int drift[2] = {halves == 1 ? 0 : 1, -1};   // per half
-                        std::array<std::vector<double>, 2> wrapping;
-                        std::array<double, 2> transit{0.0, 0.0};
-                        for (int h = 0; h < halves; ++h) {
-                            wrapping[size_t(h)].assign(sliceSize, 0.0);
-                            transit[size_t(h)] = wrapAround(1.0 / halves, drift[h],
-                                wrapping[size_t(h)]);
-                        }
-                        const double first = transit[0] + transit[1];
-                        for (int h = 0; h < halves; ++h) {
-                            for (int wrap = 0; wrap < kMaxWraps
-                                 && transit[size_t(h)] > 1e-9 * first; ++wrap) {
-                                entry.swap(wrapping[size_t(h)]);
-                                pass(false);
-                                std::fill(wrapping[size_t(h)].begin(), wrapping[size_t(h)].end(),
-                                    0.0);
-                                transit[size_t(h)] = wrapAround(1.0, drift[h],
-                                    wrapping[size_t(h)]);
-                            }
-                        }
-                        for (size_t e = 0; e < sliceSize; ++e) {
-                            leftNow[slice + e] = wrapping[0][e]
-                                + (halves == 2 ? wrapping[1][e] : 0.0);
-                        }
-                    }
-                    const size_t k = ++done;
-                    if (interrupt && interrupt->wasInterrupted(int(100 * k / dirs))) {
-                        cancelled = true;
-                    }
-                });
-            }
+    // The sources in each pattern's order, so that the sweeps read them sequentially.
+    std::array<std::vector<float>, SweepSchedule::kPatterns> S, B;
+    for (size_t p = 0; p < S.size(); ++p) {
+        if (schedule.pattern(p).empty()) continue;
+        schedule.toPatternOrder(p, source, S[p], M);
+        schedule.toPatternOrder(p, beamSource, B[p]);
+    }
+    Impl::Sweep sw{S, B, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0)};
+    SweepProgress progress(interrupt, directions().size());
+    schedule.forEachGroup(progress, "cloud transfer", [](int) { return true; }, [&](int g) {
+        sw.G[size_t(g)].assign(n * M, 0.f);
+        schedule.forDirections(g, [&](size_t d) {
+            if (progress.cancelled()) return;
+            impl.sweepDirection(*this, g, d, sw);
+            progress.finished(1);
         });
-    if (cancelled) throw Cancelled("cloud transfer");
+    });
 
     // Moments from the groups, in a fixed order (bit-identical for any thread count).
     std::vector<double> sum(n * M, 0.0);
-    for (int g = 0; g < Impl::kGroups; ++g) {
-        const std::vector<float>& G = gathered[size_t(g)];
-        if (G.empty()) continue;
-        const std::vector<uint32_t>& order = impl.patterns[size_t(g / 2)].order;
-        for (size_t k = 0; k < n; ++k) {
-            for (size_t lm = 0; lm < M; ++lm) sum[order[k] * M + lm] += double(G[k * M + lm]);
-        }
-    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) schedule.sum(sw.G, i, M, &sum[i * M]);
+    });
     // The state this sweep started from, for the Anderson step below: the moments and, with
     // periodic boundaries, the light carried across the side faces (in a thin periodic slab
     // light wraps many times, and that carry-over is then the slowest mode).
@@ -821,41 +521,44 @@ CloudTransfer::iterate(openvdb::util::NullInterrupter* interrupt)
             * (impl.deposited[i] + 4.0 * kPi * double(impl.kappa[i]) * double(J));
     }
 
-    if (periodic) impl.leftFace.swap(leftNow);
+    if (impl.boundary) impl.leftFace.swap(sw.leftNow);
     if (impl.mixer) {
         // The next sweep starts from the mixed state; J follows it, so that the next residual
         // measures that sweep's change and the output is the mixed iterate. A mixed state with
         // negative mean radiance or carried power is refused (the plain step is kept).
         std::vector<float> gx = impl.moments;
         gx.insert(gx.end(), impl.leftFace.begin(), impl.leftFace.end());
-        impl.mixer->mix(x.data(), gx.data());
-        bool physical = true;
-        for (size_t i = 0; i < n && physical; ++i) physical = gx[i * M] >= 0.f;
-        for (size_t k = n * M; k < gx.size() && physical; ++k) physical = gx[k] >= 0.f;
-        if (!physical) impl.mixer->rejectLastStep(gx.data());
+        andersonStep(*impl.mixer, x.data(), gx.data(), [&](const float* v) {
+            for (size_t i = 0; i < n; ++i) if (!(v[i * M] >= 0.f)) return false;
+            for (size_t k = n * M; k < gx.size(); ++k) if (!(v[k] >= 0.f)) return false;
+            return true;
+        });
         std::copy(gx.begin(), gx.begin() + long(n * M), impl.moments.begin());
         std::copy(gx.begin() + long(n * M), gx.end(), impl.leftFace.begin());
         for (size_t i = 0; i < n; ++i) impl.diffuseJ[i] = float(double(impl.moments[i * M]) * y00);
     }
+    // Light leaving the box, in the order of the sign patterns and their halves.
     double up0 = 0.0, down0 = 0.0;
-    for (const auto& e : escaped) { down0 += e[0]; up0 += e[1]; }
+    for (int p = 0; p < SweepSchedule::kPatterns; ++p) {
+        for (int half = 0; half < SweepSchedule::kGroups / SweepSchedule::kPatterns; ++half) {
+            const std::array<double, 2>& e = sw.escaped[size_t(half * SweepSchedule::kPatterns + p)];
+            down0 += e[0];
+            up0 += e[1];
+        }
+    }
     const double in = impl.incident > 0.0 ? impl.incident : 1.0;
     mBudget.incident = impl.incident * impl.outputScale;
     mBudget.albedo = up0 / in;
     mBudget.transmittance = (down0 + impl.directOut) / in;
     mBudget.directTransmittance = impl.directOut / in;
     mBudget.absorptance = absorbed / in;
-
-    const double residual = maxJ > 0.0 ? maxChange / maxJ : 0.0;
-    mResiduals.push_back(residual);
-    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return residual;
+    return maxJ > 0.0 ? maxChange / maxJ : 0.0;
 }
 
 void
 CloudTransfer::solve(openvdb::util::NullInterrupter* interrupt)
 {
-    while (!converged() && iterationCount() < mOptions.maxIterations) iterate(interrupt);
+    while (!finished()) iterate(interrupt);
 }
 
 size_t
@@ -869,11 +572,13 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     const size_t M = size_t(order + 1) * size_t(order + 1);
     size_t perVoxel = 4 + 4 + 4 + 8 + 4;            // kappa, omega, beam J, deposit, diffuse J
     perVoxel += 8 + (M > 1 ? 8 : 0);                // escape factor, alpha's excess of I_00
-    perVoxel += 4 * (4 + 4 + 12);                   // per pattern: order, kappa, sweep coords
+    perVoxel += SweepSchedule::bytesPerVoxel(true, false, false);   // orders, layouts
+    perVoxel += 4 * 4;                              // kappa in each pattern's order
     perVoxel += 4 * M + 4 * M + 4;                  // moments, their source, the beam's source
+    perVoxel += 4 * (4 * M + 4);                    // the sources in each pattern's order
     perVoxel += size_t(Impl::kGroups) * 4 * M;      // gathered moments per group
     perVoxel += 8 * M;                              // their double sum
-    perVoxel += t * (4 * M + 4 + 4 + 16);           // per thread: S, B, slots, line state
+    perVoxel += t * (4 + 16);                       // per thread: slots, line state
     if (options.accelerate == Acceleration::Anderson) {
         perVoxel += 8 * M + AndersonMixer::bytes(M, options.andersonDepth);   // + x, G(x)
     }
@@ -886,7 +591,7 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
         const size_t layers = size_t(box.dim()[options.up]);   // copies stack sideways only
         const size_t dirs = DirectionSet::fromCount(options.directions).size();
         const size_t faces = dirs * 2 * 6 * layers;
-        bytes += faces * (8 + 8 + 4);
+        bytes += faces * (8 + 8 + PeriodicBoundary::kBytesPerSlot);
         if (options.accelerate == Acceleration::Anderson) {
             bytes += 8 * faces + AndersonMixer::bytes(faces, options.andersonDepth);
         }
@@ -905,8 +610,8 @@ CloudTransfer::fingerprint() const
     h = hashBytes(impl.omega.data(), impl.omega.size() * sizeof(float), h);
     h = hashBytes(impl.deposited.data(), impl.deposited.size() * sizeof(double), h);
     h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
-    h = hashBytes(impl.beamTable.data(), impl.beamTable.size() * sizeof(float), h);
-    const int64_t options[10] = {int64_t(mDirections.size()), mOptions.periodic ? 1 : 0,
+    h = hashBytes(impl.phase.beam.data(), impl.phase.beam.size() * sizeof(float), h);
+    const int64_t options[10] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
         mOptions.phaseOrder, int64_t(mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
         impl.M, mCopies.x(), mCopies.y(), mCopies.z()};
     return hashBytes(options, sizeof options, h);
@@ -916,10 +621,10 @@ void
 CloudTransfer::saveState(SolverState& state) const
 {
     const Impl& impl = *mImpl;
-    state.put("residuals", mResiduals);
-    const double budget[6] = {mSeconds, mBudget.incident, mBudget.albedo,
-        mBudget.transmittance, mBudget.directTransmittance, mBudget.absorptance};
-    state.put("budget", budget, 6);
+    mIteration.save(state);
+    const double budget[5] = {mBudget.incident, mBudget.albedo, mBudget.transmittance,
+        mBudget.directTransmittance, mBudget.absorptance};
+    state.put("budget", budget, 5);
     state.put("diffuseJ", impl.diffuseJ);
     state.put("moments", impl.moments);
     state.put("leftFace", impl.leftFace);
@@ -930,18 +635,17 @@ void
 CloudTransfer::restoreState(const SolverState& state)
 {
     Impl& impl = *mImpl;
-    mResiduals = state.get<double>("residuals");
-    const std::vector<double> budget = state.get<double>("budget", 6);
+    mIteration.restore(state);
+    const std::vector<double> budget = state.get<double>("budget", 5);
     impl.diffuseJ = state.get<float>("diffuseJ", impl.diffuseJ.size());
     impl.moments = state.get<float>("moments", impl.moments.size());
     impl.leftFace = state.get<double>("leftFace", impl.leftFace.size());
     if (impl.mixer) impl.mixer->restore(state, "anderson.");
-    mSeconds = budget[0];
-    mBudget.incident = budget[1];
-    mBudget.albedo = budget[2];
-    mBudget.transmittance = budget[3];
-    mBudget.directTransmittance = budget[4];
-    mBudget.absorptance = budget[5];
+    mBudget.incident = budget[0];
+    mBudget.albedo = budget[1];
+    mBudget.transmittance = budget[2];
+    mBudget.directTransmittance = budget[3];
+    mBudget.absorptance = budget[4];
 }
 
 std::vector<float>
@@ -975,20 +679,45 @@ CloudTransfer::grid(const std::string& name) const
     g->insertMeta("vdbrad:transmittance", openvdb::FloatMetadata(float(mBudget.transmittance)));
     g->insertMeta("vdbrad:absorptance", openvdb::FloatMetadata(float(mBudget.absorptance)));
     g->insertMeta(meta::kIterations, openvdb::Int32Metadata(iterationCount()));
-    g->insertMeta(meta::kResidual, openvdb::FloatMetadata(
-        mResiduals.empty() ? 0.f : float(mResiduals.back())));
-    g->insertMeta(meta::kDirections, openvdb::Int32Metadata(int(mDirections.size())));
-    g->insertMeta(meta::kSeconds, openvdb::FloatMetadata(float(mSeconds)));
+    g->insertMeta(meta::kResidual, openvdb::FloatMetadata(float(mIteration.lastResidual())));
+    g->insertMeta(meta::kDirections, openvdb::Int32Metadata(int(directions().size())));
+    g->insertMeta(meta::kSeconds, openvdb::FloatMetadata(float(mIteration.seconds())));
     g->insertMeta(meta::kVersion, openvdb::StringMetadata(VDBRAD_VERSION_STRING));
     return g;
 }
 
+std::string
+CloudTransfer::describe() const
+{
+    std::ostringstream os;
+    os << "cloud: " << withCommas(mCloud.size()) << " voxels, " << directions().size()
+       << " directions (nearest to " << mOptions.directions << "), "
+       << (mOptions.periodic ? "periodic" : "open") << " boundaries";
+    if (mCopies != Coord(1)) {
+        os << " (solved as " << mCopies.x() << " x " << mCopies.y() << " x " << mCopies.z()
+           << " copies of the box)";
+    }
+    if (mOptions.accelerate == Acceleration::Anderson) os << ", Anderson acceleration";
+    return os.str();
+}
+
 openvdb::GridBase::Ptr
 solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
-    openvdb::util::NullInterrupter* interrupt)
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control)
 {
     CloudTransfer transfer(cloud, options, interrupt);
-    transfer.solve(interrupt);
+    const bool framed = interrupt && !control.beforeIteration;
+    if (framed) interrupt->start("cloud transfer");
+    iterateSolve(transfer, control, interrupt);
+    if (framed) interrupt->end();
+    if (control.note) {
+        const CloudBudget& b = transfer.budget();
+        std::ostringstream os;
+        os << "albedo " << b.albedo << ", transmittance " << b.transmittance << " (direct "
+           << b.directTransmittance << "), absorptance " << b.absorptance << "; balance "
+           << b.balance();
+        control.note(os.str());
+    }
     return transfer.grid();
 }
 

@@ -35,30 +35,14 @@
 //
 // Boundaries: open (light leaving the box is gone), or periodic across the two horizontal axes:
 // light leaving a side face re-enters through the opposite one at the same height, lagged by one
-// iteration. Lines of a direction are not invariant under the period shifts in general, so the
-// re-entering radiance is the power that left that face in that voxel layer, shared among the
-// lines entering in that layer: exact for horizontally uniform media (slabs), energy-conserving
-// always. The layer is that of the midpoint of the digital step that crosses the face (not of a
-// voxel centre projected along the direction, which sits up to half a voxel off the line's axis
-// and, along steep directions, moved the light several layers per wrap: -7.5% slab albedo).
-//
-// Narrow periodic boxes are solved as several copies side by side (CloudTransferOptions::
-// minPeriod): the re-entry above matches light to the lines of its layer, and all lines of a
-// direction entering one layer of a face have the same phase (a naive line's pattern repeats), so
-// a near-horizontal direction rises by a whole number of layers per wrap instead of its true
-// fraction, and light on directions that round to no rise is trapped until it interacts. The
-// smaller the rise per wrap (narrow box, fine direction set) the more directions that catches:
-// a thin slab 4 voxels wide over-absorbs (tau 2e-3, omega0 0.5, 967 directions: albedo -5.9%),
-// the same slab 16 wide -1.65% (BENCHMARKS.md). The copies are the same medium (a period of the
-// box is one of the tiling), so the result is the mean over them.
-//
-// Exactly horizontal directions (sigma_up = 0) never rise at all, but each stands for a cell of
-// the sphere that spans elevations up to beta = sqrt(Omega) / 2 either way, whose light would
-// leave the slab: kept in its layer, it wraps until it interacts (3.6% of the solid angle at 967
-// directions: albedo -1.65% above). In a periodic box their wrapped light is followed as two half
-// cells, each re-entering tan(beta / 2) x the box's mean chord layers higher (upper half) or
-// lower, split between the two nearest layers; what drifts past the top or bottom has left. Both
-// together: thin slab within 0.1% at 967 directions, 0.2% at 303 (tau 2e-3 to 2).
+// iteration, matched layer by layer (PeriodicBoundary.h). Narrow periodic boxes are solved as
+// several copies side by side (CloudTransferOptions::minPeriod): all lines of a direction
+// entering one layer of a face have the same phase (a naive line's pattern repeats), so a
+// near-horizontal direction rises by a whole number of layers per wrap instead of its true
+// fraction, and light on directions that round to no rise is trapped until it interacts; the
+// narrower the box, the more directions that catches (figures: BENCHMARKS.md). The copies are
+// the same medium (a period of the box is one of the tiling), so the result is the mean over
+// them.
 //
 // Anisotropic scattering (PhaseFunction.h): the sweeps accumulate the radiance's spherical-
 // harmonic moments I_lm up to order K instead of J alone, and a voxel's source in direction s is
@@ -72,6 +56,7 @@
 #include "vdbrad/Checkpoint.h"
 #include "vdbrad/Cloud.h"
 #include "vdbrad/DirectionSet.h"
+#include "vdbrad/FixedPointIteration.h"
 #include "vdbrad/PhaseFunction.h"
 
 #include <openvdb/openvdb.h>
@@ -142,14 +127,19 @@ public:
     ~CloudTransfer();
 
     /// @brief One source iteration over every direction; returns the relative change of J.
+    /// @throw vdbrad::Cancelled if @a interrupt asks to stop
     double iterate(openvdb::util::NullInterrupter* interrupt = nullptr);
     /// Iterate until the tolerance or the cap.
     void solve(openvdb::util::NullInterrupter* interrupt = nullptr);
 
-    bool converged() const;
-    int iterationCount() const { return int(mResiduals.size()); }
-    const std::vector<double>& residuals() const { return mResiduals; }
-    const DirectionSet& directions() const { return mDirections; }
+    bool converged() const { return mIteration.converged(); }
+    /// Converged, or at the iteration cap.
+    bool finished() const { return mIteration.finished(); }
+    int iterationCount() const { return mIteration.iterationCount(); }
+    const std::vector<double>& residuals() const { return mIteration.residuals(); }
+    const DirectionSet& directions() const;
+    /// One line saying what is solved (what `vdbrad solve-cloud` prints before iterating).
+    std::string describe() const;
     /// Copies of the box solved side by side along each index axis (1, 1, 1 unless periodic
     /// and narrow: see CloudTransferOptions::minPeriod).
     const openvdb::Coord& copies() const { return mCopies; }
@@ -181,21 +171,24 @@ public:
 
 private:
     struct Impl;
+    /// One iteration's sweeps and update (iterate() times and records it).
+    double sweep(openvdb::util::NullInterrupter* interrupt);
     /// periodicCopies() for a direction set of @a directions pairs.
     static openvdb::Coord copiesFor(const Cloud& cloud, const CloudTransferOptions& options,
         size_t directions);
     const Cloud& mCloud;
     CloudTransferOptions mOptions;
-    DirectionSet mDirections;
+    FixedPointIteration mIteration;
     openvdb::Coord mCopies{1, 1, 1};
     std::unique_ptr<Impl> mImpl;
-    std::vector<double> mResiduals;
     CloudBudget mBudget;
-    double mSeconds = 0.0;
 };
 
 /// @brief Solve the transfer in @a cloud and return its `mean_intensity` grid (see grid()).
+/// @a control: checkpoints and reports (SolveControl).
+/// @throw as CloudTransfer's constructor and iterate(); as readCheckpoint(), writeCheckpoint()
 openvdb::GridBase::Ptr solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
-    openvdb::util::NullInterrupter* interrupt = nullptr);
+    openvdb::util::NullInterrupter* interrupt = nullptr,
+    const SolveControl& control = SolveControl());
 
 } // namespace vdbrad

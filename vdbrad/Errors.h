@@ -19,6 +19,14 @@ public:
 };
 
 /// The message of @a e without OpenVDB's "TypeName: " prefix, for one-line user reports.
+/// A checkpoint file that cannot be read, written or resumed (FixedPointIteration.h); its
+/// message names the file.
+class CheckpointError : public openvdb::IoError
+{
+public:
+    explicit CheckpointError(const std::string& msg) noexcept : openvdb::IoError(msg) {}
+};
+
 inline std::string
 errorMessage(const std::exception& e)
 {

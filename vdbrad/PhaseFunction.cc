@@ -2,7 +2,9 @@
 
 #include <openvdb/Exceptions.h>
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace vdbrad {
 
@@ -116,6 +118,56 @@ realSphericalHarmonics(int order, const openvdb::Vec3d& dir, double* out)
             }
         }
     }
+}
+
+PhaseFunction::Tables
+PhaseFunction::tables(const DirectionSet& directions, int order, const openvdb::Vec3d& beam) const
+{
+    const double f = truncate(order).f;
+    const size_t M = size_t(order + 1) * size_t(order + 1), dirs = directions.size();
+    Tables t;
+    std::vector<double> y(M);
+    t.harmonics.resize(dirs * 2 * M);
+    t.quadratureMean.assign(M, 0.0);
+    for (size_t d = 0; d < dirs; ++d) {
+        const double omega = kPi * directions.factor(d);
+        for (int sense = 0; sense < 2; ++sense) {
+            realSphericalHarmonics(order, sense == 0 ? directions.unit(d) : -directions.unit(d),
+                y.data());
+            for (size_t lm = 0; lm < M; ++lm) {
+                t.harmonics[(2 * d + size_t(sense)) * M + lm] = float(y[lm]);
+                t.quadratureMean[lm] += omega * y[lm] / (4.0 * kPi);
+            }
+        }
+    }
+
+    std::vector<double> weight(dirs * 2);
+    std::vector<std::pair<double, size_t>> byAngle(dirs * 2);
+    for (size_t e = 0; e < dirs * 2; ++e) {
+        const openvdb::Vec3d s = (e % 2 == 0 ? 1.0 : -1.0) * directions.unit(e / 2);
+        const double mu = std::clamp(s.dot(beam), -1.0, 1.0);
+        weight[e] = kPi * directions.factor(e / 2) * value(mu) / (4.0 * kPi * (1.0 - f));
+        byAngle[e] = {-mu, e};
+    }
+    std::sort(byAngle.begin(), byAngle.end());
+    // The sampled weights add up to about 1 + f / (1 - f): the forward part delta-M keeps in
+    // the beam, plus the quadrature error of the sharp forward peak. Both live in the forward
+    // cone, so the directions closest to the beam absorb the difference to exactly 1, and the
+    // side and backward weights stay the phase function's own.
+    double excess = -1.0;
+    for (double w : weight) excess += w;
+    for (const auto& [negMu, e] : byAngle) {
+        if (excess <= 0.0) break;
+        const double take = std::min(excess, weight[e]);
+        weight[e] -= take;
+        excess -= take;
+    }
+    if (excess < 0.0) weight[byAngle.front().second] -= excess;
+    t.beam.resize(dirs * 2);
+    for (size_t e = 0; e < dirs * 2; ++e) {
+        t.beam[e] = float(4.0 * kPi * weight[e] / (kPi * directions.factor(e / 2)));
+    }
+    return t;
 }
 
 } // namespace vdbrad

@@ -13,6 +13,8 @@
 // accurate with a small K.
 #pragma once
 
+#include "vdbrad/DirectionSet.h"
+
 #include <openvdb/Types.h>
 
 #include <vector>
@@ -52,6 +54,26 @@ public:
         std::vector<double> chi;
     };
     Truncated truncate(int order) const;
+
+    /// The phase function on the directions of a sweep (CloudTransfer), at order K.
+    struct Tables
+    {
+        /// (K + 1)^2 values per direction and sense (index 2 d + sense, sense 1: -sigma): the
+        /// real spherical harmonics Y_lm of the direction of travel, with which moments are
+        /// accumulated and sources evaluated.
+        std::vector<float> harmonics;
+        /// Mean of each Y_lm over the direction set (its solid-angle weights integrate high
+        /// orders only roughly: Y_00 exactly, order 8 a few per cent off).
+        std::vector<double> quadratureMean;
+        /// First scattering of a beam, per direction and sense: the full phase function (not
+        /// its truncation) divided by 1 - f, less the forward fraction f delta-M keeps in the
+        /// beam, taken from the directions closest to the beam's, so that
+        /// sum_s Omega_s T_s = 4 pi exactly (DISORT's TMS idea, applied to the source).
+        std::vector<float> beam;
+    };
+    /// @brief Tables() over @a directions at order @a order, for a beam travelling along
+    /// @a beam (unit, index space).
+    Tables tables(const DirectionSet& directions, int order, const openvdb::Vec3d& beam) const;
 
 private:
     std::vector<double> mChi;

@@ -6,6 +6,7 @@
 #include "vdbrad/LeafOrder.h"
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/RayCastVisibility.h"
+#include "vdbrad/TextFormat.h"
 #include "vdbrad/VisibilityCache.h"
 
 #include <tbb/blocked_range.h>
@@ -18,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <sstream>
 #include <tuple>
 #include <type_traits>
 
@@ -130,16 +132,7 @@ toString(Precision p)
 // What the solver needs that does not depend on the value type.
 struct RadiositySolver::Impl
 {
-    // The voxels laid out in the visiting order of one base sign pattern (LeafOrder), with the
-    // directions that pattern serves. Accumulator group g works in pattern g % 4's order.
-    struct Pattern
-    {
-        std::vector<uint32_t> order;        // position -> voxel
-        std::vector<uint32_t> position;     // voxel -> position
-        std::unique_ptr<LineSweep> sweep;
-        std::vector<size_t> directions;
-    };
-    std::array<Pattern, 4> patterns;
+    std::unique_ptr<SweepSchedule> schedule;
     std::unique_ptr<RayCastVisibility> rays;             // Visibility::RayCast only
     // RadiosityOptions::visibilityCache (null: none): the kept reports, in each direction's
     // pattern order; per direction, whether its report was offered to it; and each thread's
@@ -152,8 +145,7 @@ struct RadiositySolver::Impl
         std::vector<uint32_t> seen;
         std::vector<uint8_t> code;
     };
-    tbb::enumerable_thread_specific<Report> reports;
-    std::vector<char> reversed;                          // per direction
+    SweepSchedule::PerThread<Report> reports;
     std::vector<float> coefficient;                      // per direction: A / |s|
     std::vector<double> invZ;                            // per voxel: 1 / Z(n)
     Regions regions;                                     // per voxel: the air region it faces
@@ -171,10 +163,7 @@ struct RadiositySolver::Impl
         std::vector<ValueT> unshot;                          // progressive shooting only
         std::vector<std::vector<typename Traits<ValueT>::Acc>> gathered;   // per group
         std::unique_ptr<AndersonMixerT<Scalar>> mixer;       // Acceleration::Anderson only
-        // Sweep scratch memory, kept by each thread across directions and iterations: a fresh
-        // one per group and iteration reallocated its line fronts as they grew, and faulting
-        // in those pages cost ~10% of an iteration.
-        tbb::enumerable_thread_specific<LineSweep::Workspace<ValueT>> work;
+        SweepSchedule::PerThread<LineSweep::Workspace<ValueT>> work;
     };
     // Only the one of the scene's kind and precision is used; in double, the float one of the
     // same kind holds B rounded to float after every change, for grey(), rgb() and grid().
@@ -209,14 +198,6 @@ struct RadiositySolver::Impl
         copy(state<float>().B, state<double>().B);
         copy(state<openvdb::Vec3f>().B, state<openvdb::Vec3d>().B);
     }
-
-    static int patternOf(int group) { return group % 4; }
-    // The directions of group g: every other one of its pattern's.
-    template<typename F> void forDirections(int group, F&& f) const
-    {
-        const std::vector<size_t>& dirs = patterns[size_t(patternOf(group))].directions;
-        for (size_t j = size_t(group / 4); j < dirs.size(); j += kGroups / 4) f(dirs[j]);
-    }
 };
 
 // Kept directions replayed together (a flush of the queue). Each block of kReplayBlock voxels
@@ -248,12 +229,11 @@ struct RadiositySolver::Engine
         if (mix) x.assign(state, state + st.mixer->size());
         const double residual = iterate(s, st.B, interrupt);
         if (mix) {
-            st.mixer->mix(x.data(), state);
-            // Radiosity is never negative: a mixed iterate that is has overshot; keep the sweep's.
+            // Radiosity is never negative: a mixed iterate that is has overshot.
             const size_t size = st.mixer->size();
-            if (std::any_of(state, state + size, [](Scalar v) { return v < 0; })) {
-                st.mixer->rejectLastStep(state);
-            }
+            andersonStep(*st.mixer, x.data(), state, [size](const Scalar* v) {
+                return std::none_of(v, v + size, [](Scalar e) { return e < 0; });
+            });
         }
         impl.narrowView();
         return residual;
@@ -286,7 +266,7 @@ struct RadiositySolver::Engine
         std::array<openvdb::Coord, kReplayed> sigma;
         for (size_t j = 0; j < count; ++j) {
             c[j] = impl.coefficient[ks[j]];
-            sigma[j] = s.mDirections.direction(ks[j]);
+            sigma[j] = s.directions().direction(ks[j]);
         }
         const uint32_t n = uint32_t(G.size());
         // Raw pointers and a block of sigma . n computed in vector lanes, so that the gather
@@ -314,14 +294,89 @@ struct RadiositySolver::Engine
         }
     }
 
+    // Group g's directions gathered into G (and their hit weights into H), from Bp (the
+    // swept radiosity in g's pattern order): each direction is swept, or replayed from the
+    // visibility cache, or cast (Visibility::RayCast).
+    template<bool Hits>
+    static void gatherGroup(RadiositySolver& s, int g, const std::vector<ValueT>& Bp,
+        std::vector<AccT>& G, std::vector<Scalar>* H, SweepProgress& progress)
+    {
+        Impl& impl = *s.mImpl;
+        const SweepSchedule& schedule = *impl.schedule;
+        const SweepSchedule::Pattern& pattern = schedule.patternOfGroup(g);
+        const size_t n = G.size();
+        LineSweep::Workspace<ValueT>& work = impl.state<ValueT>().work.local();
+        // Kept directions wait here to be replayed together, in order.
+        std::array<size_t, kReplayed> queued;
+        size_t count = 0;
+        auto flush = [&] {
+            if (count == 0) return;
+            std::array<VisibilityCache::Reader, kReplayed> readers;
+            for (size_t j = 0; j < count; ++j) {
+                readers[j] = VisibilityCache::Reader(*impl.cache, queued[j]);
+            }
+            replay<Hits>(s, *pattern.sweep, queued.data(), readers.data(), count, Bp, G, H);
+            progress.finished(count);
+            count = 0;
+        };
+        std::vector<size_t> mine;
+        schedule.forDirections(g, [&](size_t k) { mine.push_back(k); });
+        for (const size_t k : mine) {
+            if (progress.cancelled()) return;
+            const openvdb::Coord& sigma = s.directions().direction(k);
+            if (impl.cache && !impl.offered[k]) {
+                // Swept once for its report, then replayed from the cache like later
+                // iterations, or from the report if the cache has no room: gathering inside
+                // the recording sweep read B at random between its line fronts.
+                Impl::Report& report = impl.reports.local();
+                report.seen.resize(n);
+                pattern.sweep->seen(sigma, schedule.reversed(k), report.work, report.seen.data());
+                impl.cache->offer(k, report.seen.data(), report.code);
+                impl.offered[k] = 1;
+                if (!impl.cache->has(k)) {
+                    flush();
+                    RawReader raw{report.seen.data()};
+                    replay<Hits>(s, *pattern.sweep, &k, &raw, 1, Bp, G, H);
+                    progress.finished(1);
+                    continue;
+                }
+            }
+            if (impl.cache && impl.cache->has(k)) {
+                queued[count++] = k;
+                if (count == kReplayed) flush();
+                continue;
+            }
+            flush();
+            const float c = impl.coefficient[k];
+            // x (a position in the pattern's order) receives what it sees.
+            auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
+                if (seen) {
+                    const float w = std::abs(sigmaDotN) * c;
+                    G[x] += *seen * w;
+                    if constexpr (Hits) (*H)[x] += w;
+                }
+            };
+            if (impl.rays) {
+                const std::vector<uint32_t>& at = pattern.position;
+                impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
+                    gather(at[x], y == RayCastVisibility::kNone ? nullptr : &Bp[at[y]], dn);
+                });
+            } else {
+                pattern.sweep->sweep(sigma, schedule.reversed(k), work,
+                    [&](uint32_t y) { return Bp[y]; }, gather);
+            }
+            progress.finished(1);
+        }
+        flush();
+    }
+
     static double iterate(RadiositySolver& s, std::vector<ValueT>& B,
         openvdb::util::NullInterrupter* interrupt)
     {
-        static_assert(kGroups % 4 == 0, "groups are dealt to the 4 sign patterns");
         const Scene& scene = s.mScene;
         Impl& impl = *s.mImpl;
+        const SweepSchedule& schedule = *impl.schedule;
         const size_t n = scene.size();
-        const size_t dirs = s.mDirections.size();
         // Per group, its directions' gathered sum; kept between iterations for in-place updates.
         std::vector<std::vector<AccT>>& gathered = impl.state<ValueT>().gathered;
         gathered.resize(size_t(kGroups));
@@ -340,139 +395,39 @@ struct RadiositySolver::Engine
         std::vector<ValueT>& U = impl.state<ValueT>().unshot;
         const std::vector<ValueT>& source = shooting ? U : B;
         std::vector<std::vector<Scalar>> hits(static_cast<size_t>(kGroups));
-        std::atomic<size_t> done{0};
-        std::atomic<bool> cancelled{false};
+        SweepProgress progress(interrupt, s.directions().size());
         const std::vector<ValueT> previous = B;
-
-        // Group g's arrays are in pattern g % 4's order: read voxel i at its position there.
-        auto sumGroups = [&](auto& arrays, size_t i, auto zero) {
-            auto sum = zero;
-            for (int g = 0; g < kGroups; ++g) {
-                const auto& a = arrays[size_t(g)];
-                if (a.empty()) continue;
-                sum += decltype(zero)(a[impl.patterns[size_t(Impl::patternOf(g))].position[i]]);
-            }
-            return sum;
-        };
 
         for (int phase = 0; phase < phases; ++phase) {
             // In two phases (in-place), groups 0-3 then 4-7 sweep, B being updated in between.
-            auto inPhase = [&](int g) { return phases == 1 || g / 4 == phase; };
+            auto inPhase = [&](int g) { return phases == 1 || g / SweepSchedule::kPatterns == phase; };
             // B in each pattern's order, so that the sweeps read it sequentially.
-            std::array<std::vector<ValueT>, 4> ordered;
-            for (size_t p = 0; p < 4; ++p) {
-                const Impl::Pattern& pattern = impl.patterns[p];
-                if (pattern.directions.empty()) continue;
-                ordered[p].resize(n);
-                tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                        for (size_t k = r.begin(); k != r.end(); ++k) {
-                            ordered[p][k] = source[pattern.order[k]];
-                        }
-                    });
+            std::array<std::vector<ValueT>, SweepSchedule::kPatterns> ordered;
+            for (size_t p = 0; p < ordered.size(); ++p) {
+                if (!schedule.pattern(p).empty()) schedule.toPatternOrder(p, source, ordered[p]);
             }
-            tbb::parallel_for(tbb::blocked_range<int>(0, kGroups, 1),
-                [&](const tbb::blocked_range<int>& r) {
-                    const ScopedFlushDenormals flush;   // Denormals.h
-                    for (int g = r.begin(); g != r.end(); ++g) {
-                        const size_t p = size_t(Impl::patternOf(g));
-                        if (!inPhase(g) || impl.patterns[p].directions.empty()) continue;
-                        const Impl::Pattern& pattern = impl.patterns[p];
-                        const std::vector<ValueT>& Bp = ordered[p];
-                        std::vector<AccT>& G = gathered[size_t(g)];
-                        G.assign(n, openvdb::zeroVal<AccT>());
-                        std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
-                        if (H) H->assign(n, Scalar(0));
-                        LineSweep::Workspace<ValueT>& work = impl.state<ValueT>().work.local();
-                        std::vector<size_t> mine;
-                        impl.forDirections(g, [&](size_t k) { mine.push_back(k); });
-                        auto finished = [&](size_t count) {
-                            const size_t d = done += count;
-                            if (interrupt && interrupt->wasInterrupted(int(100 * d / dirs))) {
-                                cancelled = true;
-                            }
-                        };
-                        // Compiled with and without the hit weights, so that the sweeps of
-                        // every iteration but the first test nothing for them.
-                        auto directions = [&](auto withHits) {
-                            constexpr bool kHits = decltype(withHits)::value;
-                            // Kept directions wait here to be replayed together, in order.
-                            std::array<size_t, kReplayed> queued;
-                            size_t count = 0;
-                            auto flush = [&] {
-                                if (count == 0) return;
-                                std::array<VisibilityCache::Reader, kReplayed> readers;
-                                for (size_t j = 0; j < count; ++j) {
-                                    readers[j] = VisibilityCache::Reader(*impl.cache, queued[j]);
-                                }
-                                replay<kHits>(s, *pattern.sweep, queued.data(), readers.data(),
-                                    count, Bp, G, H);
-                                finished(count);
-                                count = 0;
-                            };
-                            for (const size_t k : mine) {
-                                if (cancelled.load(std::memory_order_relaxed)) return;
-                                const openvdb::Coord& sigma = s.mDirections.direction(k);
-                                if (impl.cache && !impl.offered[k]) {
-                                    // Swept once for its report, then replayed from the cache
-                                    // like later iterations, or from the report if the cache
-                                    // has no room: gathering inside the recording sweep read
-                                    // B at random between its line fronts, ~2x a replay.
-                                    Impl::Report& report = impl.reports.local();
-                                    report.seen.resize(n);
-                                    pattern.sweep->seen(sigma, impl.reversed[k] != 0,
-                                        report.work, report.seen.data());
-                                    impl.cache->offer(k, report.seen.data(), report.code);
-                                    impl.offered[k] = 1;
-                                    if (!impl.cache->has(k)) {
-                                        flush();
-                                        RawReader raw{report.seen.data()};
-                                        replay<kHits>(s, *pattern.sweep, &k, &raw, 1, Bp, G, H);
-                                        finished(1);
-                                        continue;
-                                    }
-                                }
-                                if (impl.cache && impl.cache->has(k)) {
-                                    queued[count++] = k;
-                                    if (count == kReplayed) flush();
-                                    continue;
-                                }
-                                flush();
-                                const float c = impl.coefficient[k];
-                                // x (a position in the pattern's order) receives what it sees.
-                                auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
-                                    if (seen) {
-                                        const float w = std::abs(sigmaDotN) * c;
-                                        G[x] += *seen * w;
-                                        if constexpr (kHits) (*H)[x] += w;
-                                    }
-                                };
-                                if (impl.rays) {
-                                    const std::vector<uint32_t>& at = pattern.position;
-                                    impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
-                                        gather(at[x], y == RayCastVisibility::kNone ? nullptr
-                                            : &Bp[at[y]], dn);
-                                    });
-                                } else {
-                                    pattern.sweep->sweep(sigma, impl.reversed[k] != 0, work,
-                                        [&](uint32_t y) { return Bp[y]; }, gather);
-                                }
-                                finished(1);
-                            }
-                            flush();
-                        };
-                        if (H) directions(std::true_type());
-                        else directions(std::false_type());
-                    }
-                });
-            if (cancelled) throw Cancelled("radiosity solve");
+            schedule.forEachGroup(progress, "radiosity solve", inPhase, [&](int g) {
+                std::vector<AccT>& G = gathered[size_t(g)];
+                G.assign(n, openvdb::zeroVal<AccT>());
+                std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
+                const std::vector<ValueT>& Bp = ordered[SweepSchedule::patternOf(g)];
+                // Compiled with and without the hit weights, so that the sweeps of every
+                // iteration but the first test nothing for them.
+                if (H) {
+                    H->assign(n, Scalar(0));
+                    gatherGroup<true>(s, g, Bp, G, H, progress);
+                } else {
+                    gatherGroup<false>(s, g, Bp, G, H, progress);
+                }
+            });
 
             if (measureHits) {
                 tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
                     [&](const tbb::blocked_range<size_t>& r) {
                         for (size_t i = r.begin(); i != r.end(); ++i) {
                             if (impl.regions.region[i] == 0) continue;   // faces the outside
-                            const double h = sumGroups(hits, i, 0.0);
+                            double h = 0.0;
+                            schedule.sum(hits, i, 1, &h);
                             if (h > 0.0) impl.invZ[i] = 1.0 / h;
                         }
                     });
@@ -481,7 +436,8 @@ struct RadiositySolver::Engine
             tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
                 [&](const tbb::blocked_range<size_t>& r) {
                     for (size_t i = r.begin(); i != r.end(); ++i) {
-                        const WideT sum = sumGroups(gathered, i, openvdb::zeroVal<WideT>());
+                        WideT sum = openvdb::zeroVal<WideT>();
+                        schedule.sum(gathered, i, 1, &sum);
                         const ValueT incoming = ValueT(sum * impl.invZ[i]);
                         if (shooting) {
                             U[i] = value<ValueT>(scene.albedo(), i) * incoming;
@@ -506,34 +462,24 @@ struct RadiositySolver::Engine
 RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& options)
     : mScene(scene)
     , mOptions(options)
+    , mIteration(options.maxIterations, options.tolerance, options.accelerate,
+          options.andersonDepth)
     , mImpl(new Impl)
 {
     if (options.directions < 1) {
         OPENVDB_THROW(openvdb::ValueError, "directions must be >= 1, got " << options.directions);
     }
-    if (options.maxIterations < 1) {
-        OPENVDB_THROW(openvdb::ValueError, "iterations must be >= 1, got "
-            << options.maxIterations);
-    }
-    if (!(options.tolerance >= 0.0)) {
-        OPENVDB_THROW(openvdb::ValueError, "tolerance must be >= 0, got " << options.tolerance);
-    }
-    if (options.accelerate == Acceleration::Anderson) {
-        if (options.update == UpdateScheme::Progressive) {
-            OPENVDB_THROW(openvdb::ValueError, "Anderson acceleration needs Jacobi or in-place "
-                "updates, not progressive shooting (whose state is not B alone)");
-        }
-        if (options.andersonDepth < 1) {
-            OPENVDB_THROW(openvdb::ValueError, "Anderson depth must be >= 1, got "
-                << options.andersonDepth);
-        }
+    if (options.accelerate == Acceleration::Anderson
+        && options.update == UpdateScheme::Progressive) {
+        OPENVDB_THROW(openvdb::ValueError, "Anderson acceleration needs Jacobi or in-place "
+            "updates, not progressive shooting (whose state is not B alone)");
     }
     if (!(options.occlusionDepth > 0.f)) {
         OPENVDB_THROW(openvdb::ValueError, "occlusion depth must be > 0, got "
             << options.occlusionDepth);
     }
-    mDirections = DirectionSet::fromCount(options.directions);
-    const size_t dirs = mDirections.size(), n = scene.size();
+    DirectionSet directions = DirectionSet::fromCount(options.directions);
+    const size_t dirs = directions.size(), n = scene.size();
 
     Impl& impl = *mImpl;
     // A cache pays from the second iteration on.
@@ -542,15 +488,10 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         impl.cache.reset(new VisibilityCache(dirs, n, options.visibilityCache));
         impl.offered.assign(dirs, 0);
     }
-    LeafOrder::Patterns dealt = LeafOrder::patterns(dirs,
-        [&](size_t k) { return mDirections.direction(k); });
-    impl.reversed = std::move(dealt.reversed);
-    for (size_t p = 0; p < 4; ++p) impl.patterns[p].directions = std::move(dealt.directions[p]);
-    const std::array<LeafOrder::Signs, 4>& signsOf = dealt.signs;
     impl.coefficient.resize(dirs);
     for (size_t k = 0; k < dirs; ++k) {
-        const openvdb::Coord& d = mDirections.direction(k);
-        impl.coefficient[k] = float(mDirections.factor(k) / openvdb::Vec3d(d.asVec3d()).length());
+        const openvdb::Coord& d = directions.direction(k);
+        impl.coefficient[k] = float(directions.factor(k) / openvdb::Vec3d(d.asVec3d()).length());
     }
     // Per-voxel normalisation of the direction factors (DirectionSet.h).
     impl.invZ.resize(n);
@@ -567,7 +508,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
                 if (recent[k].first == nrm) { inv = recent[k].second; found = true; }
             }
             if (!found) {
-                inv = 1.0 / mDirections.hemisphereSum(openvdb::Vec3d(nrm));
+                inv = 1.0 / directions.hemisphereSum(openvdb::Vec3d(nrm));
                 recent[next] = {nrm, inv};
                 next = (next + 1) % recent.size();
                 filled = std::min(filled + 1, recent.size());
@@ -576,22 +517,18 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         }
     });
     impl.regions = findRegions(scene.voxels(), scene.normals(), options.lines, kEnclosureBlocks);
-    for (size_t p = 0; p < 4; ++p) {
-        Impl::Pattern& pattern = impl.patterns[p];
-        if (pattern.directions.empty()) continue;
-        const LeafOrder order(scene.voxels(), signsOf[p]);
-        pattern.order = order.voxels();
-        pattern.position.resize(n);
-        for (size_t k = 0; k < n; ++k) pattern.position[pattern.order[k]] = uint32_t(k);
-        if (options.visibility == Visibility::Sweep) {
-            pattern.sweep.reset(new LineSweep(scene.voxels(), order, &scene.normals(),
-                options.lines, options.occlusionDepth,
-                impl.regions.cavities > 0 ? &impl.regions.region : nullptr));
-        }
-    }
+    const std::vector<uint32_t>* regions = impl.regions.cavities > 0 ? &impl.regions.region
+                                                                      : nullptr;
+    SweepSchedule::Layout layout;
+    layout.sweeps = options.visibility == Visibility::Sweep;
+    layout.lines = options.lines;
+    layout.normals = &scene.normals();
+    layout.depth = options.occlusionDepth;
+    layout.regions = regions;
+    impl.schedule.reset(new SweepSchedule(scene.voxels(), std::move(directions), layout));
     if (options.visibility == Visibility::RayCast) {
         impl.rays.reset(new RayCastVisibility(scene.voxels(), scene.normals(), options.lines,
-            options.occlusionDepth, impl.regions.cavities > 0 ? &impl.regions.region : nullptr));
+            options.occlusionDepth, regions));
     }
 
     impl.wide = solvesInDouble(scene, options);
@@ -600,10 +537,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         using ValueT = typename decltype(st.B)::value_type;
         st.B.resize(n);
         for (size_t i = 0; i < n; ++i) st.B[i] = value<ValueT>(scene.emission(), i);
-        if (options.accelerate == Acceleration::Anderson) {
-            st.mixer.reset(new AndersonMixerT<typename StateT::Scalar>(n * StateT::kWidth,
-                options.andersonDepth));
-        }
+        st.mixer = mIteration.makeMixer<typename StateT::Scalar>(n * StateT::kWidth);
         // Nothing has been shot yet: all of E is unshot.
         if (options.update == UpdateScheme::Progressive) st.unshot = st.B;
     });
@@ -615,15 +549,14 @@ RadiositySolver::~RadiositySolver() = default;
 double
 RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
 {
-    const auto t0 = std::chrono::steady_clock::now();
-    double residual = 0.0;
-    mImpl->withState(mScene.isRgb(), [&](auto& st) {
-        using ValueT = typename decltype(st.B)::value_type;
-        residual = Engine<ValueT>::step(*this, interrupt);
+    return mIteration.iterate([&] {
+        double residual = 0.0;
+        mImpl->withState(mScene.isRgb(), [&](auto& st) {
+            using ValueT = typename decltype(st.B)::value_type;
+            residual = Engine<ValueT>::step(*this, interrupt);
+        });
+        return residual;
     });
-    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    mResiduals.push_back(residual);
-    return residual;
 }
 
 size_t
@@ -638,16 +571,16 @@ RadiositySolver::cacheBytes() const
     return mImpl->cache ? mImpl->cache->bytes() : 0;
 }
 
-bool
-RadiositySolver::converged() const
-{
-    return !mResiduals.empty() && mResiduals.back() <= mOptions.tolerance;
-}
-
 void
 RadiositySolver::solve(openvdb::util::NullInterrupter* interrupt)
 {
-    while (!converged() && iterationCount() < mOptions.maxIterations) iterate(interrupt);
+    while (!finished()) iterate(interrupt);
+}
+
+const DirectionSet&
+RadiositySolver::directions() const
+{
+    return mImpl->schedule->directions();
 }
 
 template<typename ValueT>
@@ -757,7 +690,7 @@ RadiositySolver::fingerprint() const
     h = hashAttribute(mScene.emission(), h);
     const int64_t options[8] = {mOptions.directions, int64_t(mOptions.lines),
         int64_t(mOptions.update), int64_t(mOptions.visibility), int64_t(mOptions.accelerate),
-        mOptions.andersonDepth, int64_t(mDirections.size()), int64_t(mImpl->wide)};
+        mOptions.andersonDepth, int64_t(directions().size()), int64_t(mImpl->wide)};
     h = hashBytes(options, sizeof options, h);
     return hashBytes(&mOptions.occlusionDepth, sizeof(float), h);
 }
@@ -766,8 +699,7 @@ void
 RadiositySolver::saveState(SolverState& state) const
 {
     const Impl& impl = *mImpl;
-    state.put("residuals", mResiduals);
-    state.put("seconds", &mSeconds, 1);
+    mIteration.save(state);
     const uint8_t flags[2] = {uint8_t(impl.hitsKnown), uint8_t(impl.gatheredStale)};
     state.put("flags", flags, 2);
     state.put("invZ", impl.invZ);
@@ -793,8 +725,7 @@ RadiositySolver::restoreState(const SolverState& state)
 {
     Impl& impl = *mImpl;
     const size_t n = mScene.size();
-    mResiduals = state.get<double>("residuals");
-    mSeconds = state.get<double>("seconds", 1)[0];
+    mIteration.restore(state);
     const std::vector<uint8_t> flags = state.get<uint8_t>("flags", 2);
     impl.hitsKnown = flags[0] != 0;
     impl.gatheredStale = flags[1] != 0;
@@ -841,10 +772,10 @@ SolveStats
 RadiositySolver::stats() const
 {
     SolveStats s;
-    s.directions = int(mDirections.size());
+    s.directions = int(directions().size());
     s.iterations = iterationCount();
-    s.residual = mResiduals.empty() ? 0.0 : mResiduals.back();
-    s.seconds = mSeconds;
+    s.residual = mIteration.lastResidual();
+    s.seconds = mIteration.seconds();
     s.lines = mOptions.lines == LineType::Naive ? "naive" : "standard";
     return s;
 }
@@ -856,14 +787,43 @@ RadiositySolver::grid() const
                           : makeRadiosityGrid(mScene, grey(), stats());
 }
 
+std::string
+RadiositySolver::describe() const
+{
+    std::ostringstream os;
+    os << "solving " << withCommas(mScene.size()) << " voxels, " << directions().size()
+       << " directions (nearest to " << mOptions.directions << "), "
+       << (mOptions.lines == LineType::Naive ? "naive" : "standard") << " lines"
+       << (mScene.isRgb() ? ", RGB" : "")
+       << (mOptions.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
+       << (doublePrecision() ? ", double precision" : "");
+    return os.str();
+}
+
+size_t
+RadiositySolver::visibilityCacheFor(const Scene& scene, const RadiosityOptions& options,
+    int threads, double available)
+{
+    RadiosityOptions without = options;
+    without.visibilityCache = 0;
+    const double rest = available - double(memoryEstimate(scene, without, threads));
+    return size_t(std::min(std::max(0.5 * rest, 0.0), 1e18));
+}
+
 openvdb::GridBase::Ptr
 solveRadiosity(const Scene& scene, const RadiosityOptions& options,
-    openvdb::util::NullInterrupter* interrupt)
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control)
 {
     RadiositySolver solver(scene, options);
-    if (interrupt) interrupt->start("solving radiosity");
-    solver.solve(interrupt);
-    if (interrupt) interrupt->end();
+    const bool framed = interrupt && !control.beforeIteration;
+    if (framed) interrupt->start("solving radiosity");
+    iterateSolve(solver, control, interrupt);
+    if (framed) interrupt->end();
+    if (control.note && solver.cachedDirections() > 0) {
+        control.note("visibility cache: " + std::to_string(solver.cachedDirections()) + " of "
+            + std::to_string(solver.directions().size()) + " directions kept ("
+            + formatBytes(double(solver.cacheBytes())) + ")");
+    }
     return solver.grid();
 }
 

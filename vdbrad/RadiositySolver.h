@@ -33,9 +33,11 @@
 #include "vdbrad/Acceleration.h"
 #include "vdbrad/Checkpoint.h"
 #include "vdbrad/DirectionSet.h"
+#include "vdbrad/FixedPointIteration.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/OutputGrids.h"
 #include "vdbrad/Scene.h"
+#include "vdbrad/SweepSchedule.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
@@ -123,7 +125,7 @@ class RadiositySolver
 {
 public:
     /// Accumulator groups: fixed, so that results do not depend on the thread count.
-    static constexpr int kGroups = 8;
+    static constexpr int kGroups = SweepSchedule::kGroups;
     /// Kept directions are replayed in blocks of this many voxels (RadiositySolver.cc).
     static constexpr uint32_t kReplayBlock = 1024;
 
@@ -142,10 +144,15 @@ public:
     void solve(openvdb::util::NullInterrupter* interrupt = nullptr);
 
     /// True once the last residual is below the tolerance.
-    bool converged() const;
-    int iterationCount() const { return int(mResiduals.size()); }
-    const std::vector<double>& residuals() const { return mResiduals; }
-    const DirectionSet& directions() const { return mDirections; }
+    bool converged() const { return mIteration.converged(); }
+    /// Converged, or at the iteration cap.
+    bool finished() const { return mIteration.finished(); }
+    int iterationCount() const { return mIteration.iterationCount(); }
+    const std::vector<double>& residuals() const { return mIteration.residuals(); }
+    const DirectionSet& directions() const;
+    /// One line saying what is solved: voxels, directions, lines, colour, acceleration,
+    /// precision (what `vdbrad solve` prints before iterating).
+    std::string describe() const;
 
     /// The current radiosity: grey() for a grey scene, rgb() for an RGB one (Scene::isRgb()).
     /// In double precision, these are B rounded to float.
@@ -171,6 +178,11 @@ public:
     /// @a threads: the worker threads that will run it.
     static size_t memoryEstimate(const Scene& scene, const RadiosityOptions& options,
         int threads);
+    /// @brief A visibility cache budget for a solve that may use @a available more bytes (not
+    /// counting the scene): half of what is left once the solve has what it needs without a
+    /// cache (memoryEstimate()), so that the cache never crowds out the solve.
+    static size_t visibilityCacheFor(const Scene& scene, const RadiosityOptions& options,
+        int threads, double available);
 
     /// @brief Everything the next iterate() reads, for a checkpoint (Checkpoint.h): a solver
     /// set up from the same scene and options and given it by restoreState() computes the
@@ -193,16 +205,17 @@ private:
     template<typename ValueT> void replaceIterate(const std::vector<ValueT>& b);
     const Scene& mScene;
     RadiosityOptions mOptions;
-    DirectionSet mDirections;
-    std::vector<double> mResiduals;
-    double mSeconds = 0.0;
+    FixedPointIteration mIteration;
     std::unique_ptr<Impl> mImpl;
 };
 
 /// @brief Solve the radiosity of @a scene and return the `radiosity` grid (float, or Vec3f for
 /// an RGB scene) on the scene's transform, active exactly on the surface voxels, with the
 /// metadata vdbrad:voxels, directions, iterations, residual, seconds, lines, version.
-/// @throw openvdb::ValueError for invalid options; vdbrad::Cancelled if interrupted
+/// @a control: checkpoints (saved every K iterations, resumed from), and reports of each
+/// iteration and of the solve (SolveControl).
+/// @throw openvdb::ValueError for invalid options; vdbrad::Cancelled if interrupted; as
+///        readCheckpoint() and writeCheckpoint() for @a control's files
 ///
 /// @code
 /// vdbrad::Scene scene = vdbrad::buildScene(vdbrad::readVdbFile("cornell.vdb").grids);
@@ -212,6 +225,7 @@ private:
 /// @endcode
 openvdb::GridBase::Ptr solveRadiosity(const Scene& scene,
     const RadiosityOptions& options = RadiosityOptions(),
-    openvdb::util::NullInterrupter* interrupt = nullptr);
+    openvdb::util::NullInterrupter* interrupt = nullptr,
+    const SolveControl& control = SolveControl());
 
 } // namespace vdbrad
