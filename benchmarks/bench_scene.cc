@@ -2,6 +2,7 @@
 // nearest equivalent work in the same process (ratios, not absolute times, are the result).
 //
 //   build/benchmarks/bench_scene [resolution ...]      (default 256 512)
+#include "BenchTiming.h"
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/vdbrad.h"
 
@@ -17,19 +18,7 @@
 
 namespace {
 
-// Best of @a reps runs, in seconds.
-double
-timeIt(const std::function<void()>& f, int reps = 3)
-{
-    double best = 1e300;
-    for (int i = 0; i < reps; ++i) {
-        const auto t0 = std::chrono::steady_clock::now();
-        f();
-        best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
-            .count());
-    }
-    return best;
-}
+using vdbrad::bench::timeIt;
 
 void
 row(const char* what, int res, size_t voxels, double ours, double base, const char* baseline)

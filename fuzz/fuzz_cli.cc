@@ -69,6 +69,7 @@ checkParsed(const CommandSpec& c, const Arguments& a)
             require(value == o.defaultValue, c, "absent option does not give its default");
             continue;
         }
+        require(o.accepts(value), c, "accepted a value outside the option's choices or range");
         switch (o.type) {
             case OptionType::Flag: require(value == "1", c, "flag value"); break;
             case OptionType::String: break;

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <limits>
 #include <sstream>
+#include <utility>
 
 namespace vdbrad {
 namespace cli {
@@ -69,7 +70,57 @@ parseNumber(const std::string& s, OptionType type, std::string& error)
         error = "'" + s + "' is not a finite number";
         return false;
     }
+    if (std::abs(v) > double(std::numeric_limits<float>::max())) {
+        error = "'" + s + "' is out of range";
+        return false;
+    }
     return true;
+}
+
+// A bound as the user would type it: integers without an exponent (1000000, not 1e+06).
+std::string
+formatBound(double v, OptionType type)
+{
+    if (type == OptionType::Int) return std::to_string(std::llround(v));
+    std::ostringstream os;
+    os << v;
+    return os.str();
+}
+
+// "[1, 4096]", "(-1, 1)", ">= 0", "> 0", "<= 1"; empty without a range.
+std::string
+rangeText(const OptionSpec& o)
+{
+    const bool low = o.min > -std::numeric_limits<double>::infinity();
+    const bool high = o.max < std::numeric_limits<double>::infinity();
+    const std::string lo = formatBound(o.min, o.type), hi = formatBound(o.max, o.type);
+    if (low && high) {
+        return (o.minExclusive ? "(" : "[") + lo + ", " + hi + (o.maxExclusive ? ")" : "]");
+    }
+    if (low) return (o.minExclusive ? "> " : ">= ") + lo;
+    if (high) return (o.maxExclusive ? "< " : "<= ") + hi;
+    return "";
+}
+
+// @a o with its lower (or upper) bound set to @a value.
+OptionSpec
+withBound(OptionSpec o, bool lower, double value, bool exclusive)
+{
+    (lower ? o.min : o.max) = value;
+    (lower ? o.minExclusive : o.maxExclusive) = exclusive;
+    return o;
+}
+
+// "a", "a or b", "a, b or c", each word wrapped in @a quote.
+std::string
+listChoices(const std::vector<std::string>& choices, const std::string& quote)
+{
+    std::string s;
+    for (size_t i = 0; i < choices.size(); ++i) {
+        if (i > 0) s += i + 1 == choices.size() ? " or " : ", ";
+        s += quote + choices[i] + quote;
+    }
+    return s;
 }
 
 } // namespace
@@ -91,6 +142,54 @@ suggest(const std::string& word, const std::vector<std::string>& candidates)
     }
     if (best && bestDistance <= tolerance) return best;
     return std::nullopt;
+}
+
+OptionSpec::OptionSpec(std::string name, OptionType type, std::string defaultValue,
+    std::string example, std::string doc)
+    : name(std::move(name))
+    , type(type)
+    , defaultValue(std::move(defaultValue))
+    , example(std::move(example))
+    , doc(std::move(doc))
+    , min(-std::numeric_limits<double>::infinity())
+    , max(std::numeric_limits<double>::infinity())
+{
+}
+
+OptionSpec
+OptionSpec::oneOf(std::vector<std::string> values) const
+{
+    OptionSpec o = *this;
+    o.choices = std::move(values);
+    return o;
+}
+
+OptionSpec OptionSpec::atLeast(double lo) const { return withBound(*this, true, lo, false); }
+OptionSpec OptionSpec::above(double lo) const { return withBound(*this, true, lo, true); }
+OptionSpec OptionSpec::atMost(double hi) const { return withBound(*this, false, hi, false); }
+OptionSpec OptionSpec::below(double hi) const { return withBound(*this, false, hi, true); }
+
+std::string
+OptionSpec::validValues() const
+{
+    if (!choices.empty()) return listChoices(choices, "");
+    const std::string range = rangeText(*this);
+    return !range.empty() && (range[0] == '[' || range[0] == '(') ? "in " + range : range;
+}
+
+bool
+OptionSpec::accepts(const std::string& value) const
+{
+    if (!choices.empty()) {
+        // Int choices compare as numbers: "026" is 26.
+        return std::any_of(choices.begin(), choices.end(), [&](const std::string& c) {
+            return type == OptionType::Int ? std::strtoll(c.c_str(), nullptr, 10)
+                == std::strtoll(value.c_str(), nullptr, 10) : c == value;
+        });
+    }
+    if (type != OptionType::Int && type != OptionType::Float) return true;
+    const double v = std::strtod(value.c_str(), nullptr);
+    return (minExclusive ? v > min : v >= min) && (maxExclusive ? v < max : v <= max);
 }
 
 const OptionSpec&
@@ -183,6 +282,10 @@ parseCommand(const CommandSpec& command, const std::vector<std::string>& args)
             && !parseNumber(value, spec->type, error)) {
             throw UsageError("option --" + name + ": " + error);
         }
+        if (!spec->accepts(value)) {
+            const std::string shown = spec->type == OptionType::String ? "'" + value + "'" : value;
+            throw UsageError("--" + name + " must be " + spec->validValues() + ", got " + shown);
+        }
         out.mValues[name] = value;
     }
     const size_t n = out.mPositional.size();
@@ -204,13 +307,23 @@ commandHelp(const CommandSpec& c)
     if (!c.options.empty()) {
         os << "\noptions:\n";
         for (const auto& o : c.options) {
+            // Choices stand in the head ("--lines naive|standard"), a range after the doc.
             std::string head = "  --" + o.name;
-            if (o.type != OptionType::Flag) head += std::string(" ") + typeName(o.type);
+            if (!o.choices.empty()) {
+                head += " " + o.choices[0];
+                for (size_t i = 1; i < o.choices.size(); ++i) head += "|" + o.choices[i];
+            } else if (o.type != OptionType::Flag) {
+                head += std::string(" ") + typeName(o.type);
+            }
             os << head;
             if (head.size() < 24) os << std::string(24 - head.size(), ' ');
             else os << "\n" << std::string(24, ' ');
             os << o.doc;
-            if (!o.defaultValue.empty()) os << " (default " << o.defaultValue << ")";
+            std::string notes = o.choices.empty() ? o.validValues() : "";
+            if (!o.defaultValue.empty()) {
+                notes += (notes.empty() ? "" : "; ") + std::string("default ") + o.defaultValue;
+            }
+            if (!notes.empty()) os << " (" << notes << ")";
             os << "\n";
         }
     }
@@ -243,11 +356,17 @@ markdownReference(const std::vector<CommandSpec>& commands)
     for (const auto& c : commands) {
         os << "### `vdbrad " << c.name << " " << c.usage << "`\n\n" << c.doc << "\n\n";
         if (!c.options.empty()) {
-            os << "| option | default | example | meaning |\n|---|---|---|---|\n";
+            os << "| option | values | default | example | meaning |\n|---|---|---|---|---|\n";
+            auto code = [](const std::string& s) { return s.empty() ? s : "`" + s + "`"; };
             for (const auto& o : c.options) {
-                os << "| `--" << o.name << "` | " << (o.defaultValue.empty() ? "" : "`" + o.defaultValue + "`")
-                   << " | " << (o.example.empty() ? "" : "`" + o.example + "`") << " | " << o.doc
-                   << " |\n";
+                // A '|' in a doc ("max|B' - B|") would split its cell.
+                std::string doc;
+                for (const char ch : o.doc) {
+                    doc += ch == '|' ? std::string("\\|") : std::string(1, ch);
+                }
+                os << "| `--" << o.name << "` | "
+                   << (o.choices.empty() ? rangeText(o) : listChoices(o.choices, "`")) << " | "
+                   << code(o.defaultValue) << " | " << code(o.example) << " | " << doc << " |\n";
             }
             os << "\n";
         }

@@ -1,10 +1,11 @@
 // CommandLine: the one table that declares every command of the `vdbrad` tool.
 //
-// Names, one-line docs, positional arguments and options {name, default, example, doc} live in a
-// single table (Commands.cc). Parsing, `--help`, "did you mean" suggestions and the README's
-// command table (`vdbrad help --markdown`) are all generated from it, so they cannot drift.
-// The whole command line is parsed and type-checked before any heavy work starts: a typo fails in
-// milliseconds and leaves no output. This file knows nothing of OpenVDB (it compiles fast).
+// Names, one-line docs, positional arguments and options {name, default, example, doc, choices or
+// range} live in a single table (Commands.cc). Parsing, `--help`, "did you mean" suggestions and
+// the README's command table (`vdbrad help --markdown`) are all generated from it, so they cannot
+// drift. The whole command line is parsed, type-checked and range-checked before any heavy work
+// starts: a typo or a value out of range fails in milliseconds and leaves no output. This file
+// knows nothing of OpenVDB (it compiles fast).
 #pragma once
 
 #include <functional>
@@ -31,6 +32,8 @@ public:
     using std::runtime_error::runtime_error;
 };
 
+/// Int: a whole number that fits an int. Float: a finite number that fits a float (most options
+/// end up in floats; the commands read them as doubles).
 enum class OptionType { Flag, Int, Float, String };
 
 struct OptionSpec
@@ -39,7 +42,29 @@ struct OptionSpec
     OptionType type;
     std::string defaultValue;  ///< as shown in help; empty: none
     std::string example;       ///< a typical value, shown in help
-    std::string doc;           ///< one line, with units and valid range
+    std::string doc;           ///< one line, with units; help adds the choices and the range
+    /// The only values accepted (String or Int options); empty: any.
+    std::vector<std::string> choices;
+    /// The range of Int and Float values: [min, max], an exclusive end open.
+    double min, max;
+    bool minExclusive = false, maxExclusive = false;
+
+    OptionSpec(std::string name, OptionType type, std::string defaultValue, std::string example,
+        std::string doc);
+
+    // Validation the parser does itself, so a bad value fails before any command runs:
+    // OptionSpec{...}.oneOf({"naive", "standard"}), OptionSpec{...}.within(1, 4096).
+    OptionSpec oneOf(std::vector<std::string> values) const;
+    OptionSpec atLeast(double lo) const;  ///< value >= lo
+    OptionSpec above(double lo) const;    ///< value > lo
+    OptionSpec atMost(double hi) const;   ///< value <= hi
+    OptionSpec below(double hi) const;    ///< value < hi
+    OptionSpec within(double lo, double hi) const { return atLeast(lo).atMost(hi); }
+
+    /// The valid values in words ("naive or standard", "in [1, 4096]", ">= 0"); empty: any.
+    std::string validValues() const;
+    /// True if @a value (a number already parsed, for Int and Float) is valid.
+    bool accepts(const std::string& value) const;
 };
 
 class Arguments;
@@ -77,8 +102,8 @@ private:
 
 /// @brief Parse @a args (after the command name) against @a command.
 /// Accepts `--name value`, `--name=value`, and `-` as a positional (standard input/output).
-/// @throw UsageError with a suggestion for unknown options, missing values, bad numbers, wrong
-///        positional counts
+/// @throw UsageError with a suggestion for unknown options, missing values, bad numbers, values
+///        outside an option's choices or range, wrong positional counts
 Arguments parseCommand(const CommandSpec& command, const std::vector<std::string>& args);
 
 /// The closest of @a candidates to @a word, if it is close enough to be a likely typo.

@@ -1,4 +1,4 @@
-// Commands: the table of the tool's commands and the code behind each.
+// Commands: the table of the tool's commands, and the entry point that runs one.
 #pragma once
 
 #include "CommandLine.h"
@@ -15,6 +15,17 @@ const std::vector<CommandSpec>& commands();
 /// 0 success, 1 bad input or failure, 2 bad command line, 130 cancelled by a signal.
 /// Only this function maps errors to exit statuses and prints them (one line on stderr).
 int runTool(const std::vector<std::string>& args);
+
+// The code behind each command of the table, one file each (Command<Name>.cc). They run on
+// arguments the table has already checked, and return the exit status.
+int runMake(const Arguments& a);
+int runVoxelize(const Arguments& a);
+int runInfo(const Arguments& a);
+int runSurface(const Arguments& a);
+int runCompare(const Arguments& a);
+int runSolve(const Arguments& a);
+int runSolveCloud(const Arguments& a);
+int runRender(const Arguments& a);
 
 } // namespace cli
 } // namespace vdbrad

@@ -20,7 +20,7 @@ export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
 mkdir -p build-fuzz/artifacts build-fuzz/logs
 status=0
-# -timeout=120: above what the file guard (GridIO.cc runGuarded) may take on its own: a child
+# -timeout=120: above what the file guard (CrashGuard.cc runGuarded) may take on its own: a child
 # that hung on a lock copied by fork() is killed after 3 x its CPU budget + 15 s and retried once,
 # so a seed of 125 KB can take ~40 s there before it parses (a 10 s limit failed a CI run so).
 for name in $targets; do

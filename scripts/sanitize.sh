@@ -5,7 +5,7 @@
 # SANITIZE_EXCLUDE (a ctest -E regex) override the choice below.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# The suites CI can afford (measured in README, "Hardening"): every reader of untrusted input
+# The suites CI can afford (measured in BENCHMARKS.md, "Hardening"): every reader of untrusted input
 # (files, meshes, command lines, through the tool itself) and each solver once.
 suites=${SANITIZE_SUITES:-"test_cli;test_io;test_scene;test_mesh"}
 [ "$suites" = all ] && suites=""

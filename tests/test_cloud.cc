@@ -313,8 +313,8 @@ TEST_F(CloudTest, ResultsDoNotDependOnThreads)
 // (relative to what the medium takes out of the beam, so that a thin layer's scattered light
 // cannot vanish unnoticed). Thin layers (open 4 x 20 x 4 box: the direction set is symmetric,
 // so single scattering sends exactly half of the scattered light up): R = omega0 tau / 2 and
-// A = (1 - omega0) tau to O(tau^2 ln tau). (A thin *periodic* slab keeps the light scattered
-// into exactly horizontal directions wrapping for ~1 / tau sweeps: README, "Not yet".) Opaque
+// A = (1 - omega0) tau to O(tau^2 ln tau). (A thin *periodic* slab: ThinPeriodicSlabsDoNot-
+// OverAbsorb; its horizontal light drifts out, PeriodicBoundary.h.) Opaque
 // voxels (1e4, periodic): the beam stops in the top voxel and an absorbing slab transmits
 // nothing. A conservative slab of opaque voxels converges too (the self-scattering elimination:
 // measured 64 and 50 Anderson sweeps at 100 and 1e4 per voxel; before it, neither had converged

@@ -307,7 +307,8 @@ class GoldenToolTest : public test::ToolTest {};
 
 } // namespace
 
-// The tool's solves, a checkpointed and resumed one among them, give the recorded bits too.
+// The tool's solves give the recorded bits too (that a killed and resumed solve gives the
+// uninterrupted bits: test_cli, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits).
 TEST_F(GoldenToolTest, ToolSolvesGiveTheirRecordedBits)
 {
     const std::vector<std::pair<std::string, std::string>> runs = {
@@ -315,13 +316,6 @@ TEST_F(GoldenToolTest, ToolSolvesGiveTheirRecordedBits)
             "--directions 100 --tolerance 1e-4 --quiet"},
         {"tool-solve-50", "vdbrad make cornell c.vdb --res 24 && vdbrad solve c.vdb o.vdb "
             "--directions 100 --tolerance 0 --iterations 50 --quiet"},
-        // Killed (SIGTERM) once its first checkpoint exists, then resumed: tool-solve-50's bits.
-        {"tool-solve-resumed", "vdbrad make cornell c.vdb --res 24 && "
-            "{ vdbrad solve c.vdb x.vdb --directions 100 --tolerance 0 --iterations 50 "
-            "--checkpoint k.ck --checkpoint-every 2 --quiet & pid=$!; "
-            "while [ ! -f k.ck ] && kill -0 $pid 2> /dev/null; do sleep 0.01; done; "
-            "kill $pid 2> /dev/null; wait $pid; test -f k.ck && vdbrad solve c.vdb o.vdb "
-            "--directions 100 --tolerance 0 --iterations 50 --resume k.ck --quiet; }"},
         {"tool-solve-cloud", "vdbrad make slab s.vdb --res 12 && vdbrad solve-cloud s.vdb o.vdb "
             "--directions 60 --periodic --iterations 8 --quiet"},
     };
@@ -337,8 +331,7 @@ TEST_F(GoldenToolTest, ToolSolvesGiveTheirRecordedBits)
             lines << name << " " << h << "\n";
             continue;
         }
-        // The resumed solve computes what the uninterrupted one did.
-        const auto it = golden.find(name == "tool-solve-resumed" ? "tool-solve-50" : name);
+        const auto it = golden.find(name);
         ASSERT_NE(it, golden.end()) << name << " is not in " << kToolGoldenFile;
         EXPECT_EQ(h, it->second) << name << ": the tool's output bits changed";
     }

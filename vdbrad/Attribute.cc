@@ -1,5 +1,7 @@
 #include "vdbrad/Attribute.h"
 
+#include "vdbrad/Checkpoint.h"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -100,6 +102,16 @@ Attribute::sample(const openvdb::GridBase& grid, const VoxelIndex& index, const 
     }
     OPENVDB_THROW(openvdb::TypeError, "grid '" << grid.getName() << "' (" << name << ") has type "
         << grid.valueType() << ", expected float or vec3s");
+}
+
+uint64_t
+Attribute::hash(uint64_t h) const
+{
+    const int64_t kind[1] = {int64_t(mStorage)};
+    h = hashBytes(kind, sizeof kind, h);
+    h = hashBytes(&mUniform, sizeof mUniform, h);
+    h = hashBytes(mGrey.data(), mGrey.size() * sizeof(float), h);
+    return hashBytes(mRgb.data(), mRgb.size() * sizeof(openvdb::Vec3f), h);
 }
 
 } // namespace vdbrad

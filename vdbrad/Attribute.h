@@ -54,6 +54,9 @@ public:
         return mRgb[i];
     }
     float uniformValue() const { return mUniform; }
+    /// FNV-1a hash of the values (and how they are stored), continuing from @a seed: part of
+    /// a checkpoint's fingerprint.
+    uint64_t hash(uint64_t seed) const;
     const std::vector<float>& greyArray() const { return mGrey; }
     const std::vector<openvdb::Vec3f>& rgbArray() const { return mRgb; }
 

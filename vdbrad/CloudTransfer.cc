@@ -11,6 +11,7 @@
 #include "vdbrad/SweepSchedule.h"
 #include "vdbrad/TextFormat.h"
 #include "vdbrad/Version.h"
+#include "vdbrad/VoxelStep.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -30,24 +31,6 @@ using openvdb::Coord;
 using openvdb::Vec3d;
 
 constexpr double kPi = 3.14159265358979323846;
-// Across a step of optical depth tau: the absorbed fraction 1 - e^-tau and the mean factor
-// (1 - e^-tau) / tau, with one exponential, and without cancellation for thin voxels. The
-// radiance is updated as L += (S - L) (1 - e^-tau) rather than S + (L - S) e^-tau: at tau = 1e-8
-// e^-tau rounds to 1 in float and the latter would lose all the light a thin voxel adds.
-inline void
-stepFactors(float tau, float& absorb, float& mean)
-{
-    if (tau > 1e-3f) {
-        const double e = std::exp(-double(tau));
-        absorb = float(1.0 - e);
-        mean = float((1.0 - e) / double(tau));
-    } else {
-        // Series to tau^3: relative error below 1e-12 here.
-        absorb = tau * (1.f - 0.5f * tau * (1.f - tau / 3.f));
-        mean = 1.f - 0.5f * tau * (1.f - tau / 3.f * (1.f - 0.25f * tau));
-    }
-}
-
 // What a line carries: its radiance, whether it has met its first voxel yet (periodic boundaries
 // give that voxel the light re-entering the box) and the last voxel it met (where it leaves).
 struct Ray
@@ -56,18 +39,6 @@ struct Ray
     bool started = false;
     uint32_t last = 0;
 };
-
-// A naive line of direction sigma advances one voxel per step along its major axis: the step is
-// |sigma| / max_k |sigma_k| voxels long (float: the sweeps' and the self-scattering factors'
-// optical depths must be the same numbers).
-inline float
-stepLength(const Coord& sigma)
-{
-    const int major = std::abs(sigma.x()) >= std::abs(sigma.y())
-        ? (std::abs(sigma.x()) >= std::abs(sigma.z()) ? 0 : 2)
-        : (std::abs(sigma.y()) >= std::abs(sigma.z()) ? 1 : 2);
-    return float(sigma.asVec3d().length() / std::abs(sigma[major]));
-}
 
 } // namespace
 
@@ -124,9 +95,9 @@ struct CloudTransfer::Impl
 
 CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt)
-    : mCloud(given), mOptions(options)
-    , mIteration(options.maxIterations, options.tolerance, options.accelerate,
-          options.andersonDepth)
+    : IterativeSolver(FixedPointIteration(options.maxIterations, options.tolerance,
+          options.accelerate, options.andersonDepth))
+    , mCloud(given), mOptions(options)
     , mImpl(new Impl)
 {
     const auto start = std::chrono::steady_clock::now();
@@ -178,17 +149,9 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         }
     }
 
-    // The sun, in index space (the transform is a uniform scale plus rotation: world
-    // directions map to index directions by the inverse Jacobian).
-    const int up = options.up, a1 = (up + 1) % 3, a2 = (up + 2) % 3;
-    // Horizontal axes in the documented order: up y -> (x, z), up z -> (x, y), up x -> (y, z).
-    const int first = std::min(a1, a2), second = std::max(a1, a2);
-    const double zen = options.sunZenith * kPi / 180.0, az = options.sunAzimuth * kPi / 180.0;
-    Vec3d toSunWorld(0.0);
-    toSunWorld[up] = std::cos(zen);
-    toSunWorld[first] = std::sin(zen) * std::cos(az);
-    toSunWorld[second] = std::sin(zen) * std::sin(az);
-    const Vec3d toSun = cloud.transform().baseMap()->applyInverseJacobian(toSunWorld);
+    const int up = options.up;
+    const Vec3d toSun = sunDirection(options.sunZenith, options.sunAzimuth, up,
+        cloud.transform());
     if (interrupt) interrupt->start("solar beam");
     // The transfer runs at the irradiance divided by a power of two that brings it to [0.5, 1),
     // and intensities are multiplied back on output (both exact): flush-to-zero (Denormals.h)
@@ -229,38 +192,17 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     }
     // The moments and the light carried across periodic side faces (see iterate()).
     impl.mixer = mIteration.makeMixer<float>(n * size_t(impl.M) + impl.leftFace.size());
-    // Escape factors for the self-scattering elimination (iterate()): per direction, the float
-    // step and the weight Omega (Y_00^2 of both senses) the sweeps use; voxels of equal kappa
-    // (a homogeneous cloud) share one sum.
+    // Escape factors for the self-scattering elimination (iterate()): per direction, the
+    // weight Omega (Y_00^2 of both senses) the sweeps use.
     {
-        std::vector<float> step(dirs);
         std::vector<double> weight(dirs);
         const size_t M = size_t(impl.M);
         const std::vector<float>& y = impl.phase.harmonics;
         for (size_t d = 0; d < dirs; ++d) {
-            step[d] = stepLength(schedule.directions().direction(d));
             const double y0 = y[2 * d * M], y1 = y[(2 * d + 1) * M];
             weight[d] = double(float(kPi * schedule.directions().factor(d))) * (y0 * y0 + y1 * y1);
         }
-        impl.escape.resize(n);
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
-            [&](const tbb::blocked_range<size_t>& r) {
-                const ScopedFlushDenormals flush;   // as in the sweeps
-                float kappa = -1.f;
-                double sum = 0.0;
-                for (size_t i = r.begin(); i != r.end(); ++i) {
-                    if (impl.kappa[i] != kappa) {
-                        kappa = impl.kappa[i];
-                        sum = 0.0;
-                        for (size_t d = 0; d < dirs; ++d) {
-                            float absorb, mean;
-                            stepFactors(kappa * step[d], absorb, mean);
-                            sum += weight[d] * double(mean);
-                        }
-                    }
-                    impl.escape[i] = sum;
-                }
-            });
+        impl.escape = meanEscapeFactors(impl.kappa, schedule.directions(), weight);
     }
     mIteration.addSeconds(
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
@@ -284,24 +226,13 @@ CloudTransfer::periodicCopies(const Cloud& cloud, const CloudTransferOptions& op
 Coord
 CloudTransfer::copiesFor(const Cloud& cloud, const CloudTransferOptions& options, size_t dirs)
 {
-    Coord copies(1);
-    if (!options.periodic || options.minPeriod == 0 || cloud.size() == 0) return copies;
-    const int width = options.minPeriod > 0 ? options.minPeriod
-        : int(std::ceil(0.5 * std::sqrt(double(dirs))));
-    const Coord dim = cloud.voxels().bbox().dim();
+    if (!options.periodic || options.minPeriod == 0 || cloud.size() == 0) return Coord(1);
     // Mean optical depth per voxel of the box (empty cells count as clear air).
+    const Coord dim = cloud.voxels().bbox().dim();
     double depth = 0.0;
     for (float e : cloud.extinctionArray()) depth += double(e);
     depth *= cloud.voxelSize() / (double(dim.x()) * double(dim.y()) * double(dim.z()));
-    for (int k = 0; k < 3; ++k) {
-        if (k == options.up || dim[k] >= width) continue;
-        int c = (width + dim[k] - 1) / dim[k];
-        if (options.minPeriod < 0 && depth > 0.0) {
-            c = int(std::min<double>(c, std::max(1.0, std::ceil(8.0 / (depth * dim[k])))));
-        }
-        copies[k] = c;
-    }
-    return copies;
+    return PeriodicBoundary::copies(dim, options.up, options.minPeriod, dirs, depth);
 }
 
 // Direction d of group g, both senses: the pass with the sources, then (periodic) the passes

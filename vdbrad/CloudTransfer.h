@@ -116,7 +116,7 @@ struct CloudBudget
     double balance() const { return albedo + transmittance + absorptance - 1.0; }
 };
 
-class CloudTransfer
+class CloudTransfer : public IterativeSolver
 {
 public:
     /// @brief Prepare the sweeps and trace the solar beam.
@@ -132,11 +132,6 @@ public:
     /// Iterate until the tolerance or the cap.
     void solve(openvdb::util::NullInterrupter* interrupt = nullptr);
 
-    bool converged() const { return mIteration.converged(); }
-    /// Converged, or at the iteration cap.
-    bool finished() const { return mIteration.finished(); }
-    int iterationCount() const { return mIteration.iterationCount(); }
-    const std::vector<double>& residuals() const { return mIteration.residuals(); }
     const DirectionSet& directions() const;
     /// One line saying what is solved (what `vdbrad solve-cloud` prints before iterating).
     std::string describe() const;
@@ -178,7 +173,6 @@ private:
         size_t directions);
     const Cloud& mCloud;
     CloudTransferOptions mOptions;
-    FixedPointIteration mIteration;
     openvdb::Coord mCopies{1, 1, 1};
     std::unique_ptr<Impl> mImpl;
     CloudBudget mBudget;

@@ -25,7 +25,11 @@
 
 #include "vdbrad/DirectionSet.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <numeric>
@@ -357,6 +361,35 @@ DirectionSet::normalisedWeights(const openvdb::math::Vec3d& n) const
     }
     for (double& w : weights) w /= sum;
     return weights;
+}
+
+std::vector<double>
+DirectionSet::inverseHemisphereSums(const std::vector<openvdb::math::Vec3s>& normals) const
+{
+    std::vector<double> inv(normals.size());
+    // One pass over the directions per normal; walls of explicit scenes repeat a few normals
+    // many times, so each range remembers the last few it computed.
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, normals.size()),
+        [&](const tbb::blocked_range<size_t>& r) {
+            std::array<std::pair<openvdb::math::Vec3s, double>, 8> recent;
+            size_t filled = 0, next = 0;
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                const openvdb::math::Vec3s& n = normals[i];
+                double value = 0.0;
+                bool found = false;
+                for (size_t k = 0; k < filled && !found; ++k) {
+                    if (recent[k].first == n) { value = recent[k].second; found = true; }
+                }
+                if (!found) {
+                    value = 1.0 / hemisphereSum(openvdb::math::Vec3d(n));
+                    recent[next] = {n, value};
+                    next = (next + 1) % recent.size();
+                    filled = std::min(filled + 1, recent.size());
+                }
+                inv[i] = value;
+            }
+        });
+    return inv;
 }
 
 } // namespace vdbrad

@@ -57,8 +57,8 @@ public:
 
     /// @brief The directions of the boundary of B_R, one per ± pair.
     /// @param radius  R, in voxels, in [1, kMaxRadius]. Build time and memory are O(R²)
-    ///                (R = 100: 51,867 pairs,
-    ///                about 20 ms and 2.5 MB with -O2; R = 400: about 0.3 s and 40 MB).
+    ///                (48 bytes per pair; R = 100: 51,867 pairs, 2.5 MB; R = 400: 834,159
+    ///                pairs, 40 MB; build times: BENCHMARKS.md, "Direction set").
     /// @throw openvdb::ValueError if @a radius is outside [1, kMaxRadius].
     static DirectionSet fromRadius(int radius);
 
@@ -111,6 +111,10 @@ public:
     /// @brief Raw sum Σ_pairs |σ̂·n| A(σ) for a unit normal @a n (≈ 1; the result scales with
     ///        |n|). Divide each weight by it to conserve energy (see the file comment).
     double hemisphereSum(const openvdb::math::Vec3d& n) const;
+    /// @brief 1 / hemisphereSum(n) for each of @a normals (unit), in parallel: the solvers'
+    /// per-voxel normalisation.
+    std::vector<double> inverseHemisphereSums(
+        const std::vector<openvdb::math::Vec3s>& normals) const;
 
     /// @brief The energy-conserving weights w_σ(n) = |σ̂·n| A(σ) / hemisphereSum(n), one per pair,
     ///        in index order; they add up to 1. @a n need not be normalised. Reference code: the

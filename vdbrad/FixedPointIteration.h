@@ -17,12 +17,15 @@
 #include "vdbrad/Checkpoint.h"
 #include "vdbrad/Errors.h"
 
+#include <openvdb/Exceptions.h>
 #include <openvdb/util/NullInterrupter.h>
 
 #include <chrono>
 #include <functional>
 #include <memory>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace vdbrad {
@@ -80,6 +83,23 @@ private:
     double mSeconds = 0.0;
 };
 
+/// What every solver exposes of its iteration (RadiositySolver, CloudTransfer,
+/// MonteCarloSolver derive from it).
+class IterativeSolver
+{
+public:
+    /// True once the last residual is at or below the tolerance.
+    bool converged() const { return mIteration.converged(); }
+    /// Converged, or at the iteration cap.
+    bool finished() const { return mIteration.finished(); }
+    int iterationCount() const { return mIteration.iterationCount(); }
+    const std::vector<double>& residuals() const { return mIteration.residuals(); }
+
+protected:
+    explicit IterativeSolver(FixedPointIteration iteration) : mIteration(std::move(iteration)) {}
+    FixedPointIteration mIteration;
+};
+
 /// @brief One Anderson step: @a gx, the map's image of @a x, becomes the mixed iterate; if
 /// @a physical(gx) is then false (a mixed iterate that overshot: the least-squares step
 /// extrapolates), the plain step G(x) is kept and the history restarts.
@@ -125,19 +145,32 @@ void writeCheckpoint(const std::string& path, const SolverState& state, uint64_t
 /// vdbrad::CheckpointError naming @a path.
 void restoreFrom(const std::string& path, const std::function<void()>& restore);
 
+/// Whether a solver can be checkpointed (has saveState(), restoreState() and fingerprint()).
+template<typename T, typename = void> struct KeepsCheckpoints : std::false_type {};
+template<typename T>
+struct KeepsCheckpoints<T, std::void_t<decltype(std::declval<const T&>().fingerprint())>>
+    : std::true_type {};
+
 /// @brief Resume @a solver (RadiositySolver or CloudTransfer) from @a control.resume if given,
 /// then iterate it to its tolerance or its iteration cap, saving checkpoints and reporting as
 /// @a control says.
-/// @throw vdbrad::Cancelled if @a interrupt asks to stop; vdbrad::CheckpointError
+/// (MonteCarloSolver keeps no checkpoints: a control naming files is refused.)
+/// @throw vdbrad::Cancelled if @a interrupt asks to stop; vdbrad::CheckpointError;
+///        openvdb::ValueError for checkpoint files given to a solver that keeps none
 template<typename SolverT>
 void
 iterateSolve(SolverT& solver, const SolveControl& control,
     openvdb::util::NullInterrupter* interrupt = nullptr)
 {
     control.validate();
-    if (!control.resume.empty()) {
-        const SolverState state = readCheckpoint(control.resume, solver.fingerprint());
-        restoreFrom(control.resume, [&] { solver.restoreState(state); });
+    constexpr bool checkpoints = KeepsCheckpoints<SolverT>::value;
+    if constexpr (checkpoints) {
+        if (!control.resume.empty()) {
+            const SolverState state = readCheckpoint(control.resume, solver.fingerprint());
+            restoreFrom(control.resume, [&] { solver.restoreState(state); });
+        }
+    } else if (!control.resume.empty() || !control.checkpoint.empty()) {
+        OPENVDB_THROW(openvdb::ValueError, "this solver keeps no checkpoints");
     }
     if (control.note) control.note(solver.describe());
     while (!solver.finished()) {
@@ -145,11 +178,13 @@ iterateSolve(SolverT& solver, const SolveControl& control,
         if (control.beforeIteration) control.beforeIteration(next);
         const double residual = solver.iterate(interrupt);
         if (control.afterIteration) control.afterIteration(next, residual);
-        if (!control.checkpoint.empty() && solver.iterationCount() % control.checkpointEvery == 0
-            && !solver.converged()) {
-            SolverState state;
-            solver.saveState(state);
-            writeCheckpoint(control.checkpoint, state, solver.fingerprint());
+        if constexpr (checkpoints) {
+            if (!control.checkpoint.empty() && !solver.converged()
+                && solver.iterationCount() % control.checkpointEvery == 0) {
+                SolverState state;
+                solver.saveState(state);
+                writeCheckpoint(control.checkpoint, state, solver.fingerprint());
+            }
         }
     }
     if (control.stopped) {

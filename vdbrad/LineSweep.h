@@ -265,9 +265,9 @@ private:
     template<typename P> struct IsFront<Front<P>> : std::true_type {};
 
     /// The first @a lines of @a fronts set to the default state StateT(): by memset for a
-    /// Front, whose default is zero bytes (filled element by element, this was ~10% of a
-    /// solver's sweep). The vector only grows: resizing it to each direction's line count
-    /// initialised its tail twice and, on growth, faulted in fresh pages (~10% of a sweep).
+    /// Front, whose default is zero bytes (element by element was a visible share of a sweep:
+    /// BENCHMARKS.md). The vector only grows: resizing it to each direction's line count
+    /// initialised its tail twice and, on growth, faulted in fresh pages.
     template<typename StateT>
     static void clear(std::vector<StateT>& fronts, size_t lines)
     {

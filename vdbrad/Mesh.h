@@ -3,7 +3,7 @@
 // Only what the voxelizer needs is kept: positions, triangles (polygons are fan-triangulated),
 // and per triangle the material it was drawn with. Texture coordinates and vertex normals are
 // ignored: the voxelizer takes each triangle's orientation from its winding (counter-clockwise
-// seen from outside, as OBJ and PLY exporters write it).
+// seen from outside, as OBJ and PLY exporters write it). The readers: ObjReader.cc, PlyReader.cc.
 #pragma once
 
 #include <openvdb/Types.h>

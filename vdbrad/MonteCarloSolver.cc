@@ -1,7 +1,10 @@
 #include "vdbrad/MonteCarloSolver.h"
 
+#include "vdbrad/TextFormat.h"
+
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
+#include "vdbrad/VoxelMarch.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -37,41 +40,21 @@ trace(const Scene& scene, Accessor& acc, const openvdb::CoordBBox& box, uint32_t
 {
     using openvdb::Vec3d;
     const Vec3d o = scene.voxels().coord(self).asVec3d();
-    // Shifted coordinates: cell k spans [k, k + 1).
-    const Vec3d q0 = o + Vec3d(0.5);
-    auto exitOf = [&](const Vec3d& lo, const Vec3d& hi) {
-        double t = std::numeric_limits<double>::infinity();
-        for (int k = 0; k < 3; ++k) {
-            if (d[k] > 0.0) t = std::min(t, (hi[k] - q0[k]) / d[k]);
-            else if (d[k] < 0.0) t = std::min(t, (lo[k] - q0[k]) / d[k]);
-        }
-        return t;
-    };
-    const double tEnd = exitOf(box.min().asVec3d(), (box.max() + openvdb::Coord(1)).asVec3d());
-    double t = 0.0;
-    while (t < tEnd) {
-        // A nudge past the face just crossed picks the cell being entered.
-        const Vec3d q = q0 + d * (t + 1e-9);
-        const openvdb::Coord cell(int32_t(std::floor(q[0])), int32_t(std::floor(q[1])),
-            int32_t(std::floor(q[2])));
-        const int32_t index = acc.getValue(cell);
-        const int64_t size = index >= 0 ? 1 : VoxelIndex::emptyNodeSide(acc, cell);
-        Vec3d lo = cell.asVec3d();
-        if (size > 1) {
-            for (int k = 0; k < 3; ++k) lo[k] = double(int64_t(cell[k]) & ~(size - 1));
-        }
-        const double tExit = exitOf(lo, lo + Vec3d(double(size)));
-        if (index >= 0 && uint32_t(index) != self) {
+    uint32_t hit = MonteCarloSolver::kSky;
+    // marchVoxels works in cells [c, c + 1): half a voxel off index space.
+    marchVoxels(acc, box, o + Vec3d(0.5), d, 0.0, std::numeric_limits<double>::infinity(),
+        [&](int32_t index, double tIn, double tOut) {
+            if (uint32_t(index) == self) return true;
             const Vec3d n(scene.normal(size_t(index)));
-            const Vec3d c = cell.asVec3d();
-            const double s0 = (o + d * t - c).dot(n), s1 = (o + d * tExit - c).dot(n);
+            const Vec3d c = scene.voxels().coord(size_t(index)).asVec3d();
+            const double s0 = (o + d * tIn - c).dot(n), s1 = (o + d * tOut - c).dot(n);
             if (std::min(s0, s1) < 0.0) {
-                return d.dot(n) < 0.0 ? uint32_t(index) : MonteCarloSolver::kBack;
+                hit = d.dot(n) < 0.0 ? uint32_t(index) : MonteCarloSolver::kBack;
+                return false;
             }
-        }
-        t = std::max(tExit, t + 1e-9);
-    }
-    return MonteCarloSolver::kSky;
+            return true;   // crosses the cube in front of the plane: passes
+        });
+    return hit;
 }
 
 // S cosine-distributed directions about a voxel's normal: stratified in sin^2(theta) (equal-flux
@@ -112,17 +95,15 @@ inline void setComponent(openvdb::Vec3f& v, int c, float x) { v[c] = x; }
 
 MonteCarloSolver::MonteCarloSolver(const Scene& scene, const MonteCarloOptions& options,
     openvdb::util::NullInterrupter* interrupt)
-    : mScene(scene), mOptions(options)
+    : IterativeSolver(FixedPointIteration(options.maxIterations, options.tolerance,
+          Acceleration::None, 1))
+    , mScene(scene), mOptions(options)
 {
     if (options.samples < 1) {
         OPENVDB_THROW(openvdb::ValueError, "samples must be >= 1, got " << options.samples);
     }
-    if (options.maxIterations < 1) {
-        OPENVDB_THROW(openvdb::ValueError, "iterations must be >= 1, got "
-            << options.maxIterations);
-    }
-    if (!(options.tolerance >= 0.0)) {
-        OPENVDB_THROW(openvdb::ValueError, "tolerance must be >= 0, got " << options.tolerance);
+    if (options.gather < 0) {
+        OPENVDB_THROW(openvdb::ValueError, "gather rays must be >= 0, got " << options.gather);
     }
     const size_t n = scene.size(), S = size_t(options.samples);
     mHits.resize(n * S);
@@ -152,7 +133,8 @@ MonteCarloSolver::MonteCarloSolver(const Scene& scene, const MonteCarloOptions& 
     const Regions regions = findRegions(scene.voxels(), scene.normals(), LineType::Naive);
     mClosed.assign(n, 0);
     for (size_t i = 0; i < n; ++i) mClosed[i] = regions.region[i] != 0 ? 1 : 0;
-    mSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    mIteration.addSeconds(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 
     if (scene.isRgb()) {
         mRgb.resize(n);
@@ -218,11 +200,9 @@ double
 MonteCarloSolver::iterate(openvdb::util::NullInterrupter* interrupt)
 {
     if (interrupt && interrupt->wasInterrupted()) throw Cancelled("Monte Carlo solve");
-    const auto t0 = std::chrono::steady_clock::now();
-    const double r = mScene.isRgb() ? iterate(mRgb, mRgbError) : iterate(mGrey, mGreyError);
-    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    mResiduals.push_back(r);
-    return r;
+    return mIteration.iterate([&] {
+        return mScene.isRgb() ? iterate(mRgb, mRgbError) : iterate(mGrey, mGreyError);
+    });
 }
 
 template<typename ValueT>
@@ -348,19 +328,21 @@ MonteCarloSolver::finalGather(int rays, openvdb::util::NullInterrupter* interrup
         mGreyError.swap(g.greyError);
     }
     mGathered = int(raysPerBatch(rays) * kGatherBatches);
-    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-bool
-MonteCarloSolver::converged() const
-{
-    return !mResiduals.empty() && mResiduals.back() <= mOptions.tolerance;
+    mIteration.addSeconds(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 }
 
 void
 MonteCarloSolver::solve(openvdb::util::NullInterrupter* interrupt)
 {
-    while (!converged() && iterationCount() < mOptions.maxIterations) iterate(interrupt);
+    while (!finished()) iterate(interrupt);
+}
+
+std::string
+MonteCarloSolver::describe(const Scene& scene, const MonteCarloOptions& options)
+{
+    return "Monte Carlo: " + withCommas(scene.size()) + " voxels, "
+        + std::to_string(options.samples) + " rays each" + (scene.isRgb() ? ", RGB" : "");
 }
 
 openvdb::GridPtrVec
@@ -369,8 +351,8 @@ MonteCarloSolver::grids() const
     SolveStats stats;
     stats.directions = mGathered > 0 ? mGathered : mOptions.samples;
     stats.iterations = iterationCount();
-    stats.residual = mResiduals.empty() ? 0.0 : mResiduals.back();
-    stats.seconds = mSeconds;
+    stats.residual = mIteration.lastResidual();
+    stats.seconds = mIteration.seconds();
     stats.lines = "montecarlo";
     const std::string name = "radiosity_stderr";
     if (mScene.isRgb()) {
@@ -383,12 +365,27 @@ MonteCarloSolver::grids() const
 
 openvdb::GridPtrVec
 solveMonteCarlo(const Scene& scene, const MonteCarloOptions& options,
-    openvdb::util::NullInterrupter* interrupt)
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control)
 {
-    if (interrupt) interrupt->start("Monte Carlo radiosity");
+    if (control.note) control.note(MonteCarloSolver::describe(scene, options));
+    // Framed as one step, or (a caller reporting iterations) as steps of its own: the rays,
+    // the iterations, the final gather.
+    const bool framed = interrupt && !control.beforeIteration;
+    const bool steps = interrupt && !framed;
+    if (interrupt) interrupt->start(framed ? "Monte Carlo radiosity" : "casting rays");
     MonteCarloSolver solver(scene, options, interrupt);
-    solver.solve(interrupt);
-    if (interrupt) interrupt->end();
+    if (steps) interrupt->end();
+    SolveControl loop = control;
+    loop.note = nullptr;   // described above, before the rays
+    iterateSolve(solver, loop, interrupt);
+    if (options.gather > 0) {
+        const std::string what = "final gather, " + std::to_string(options.gather)
+            + " rays per voxel";
+        if (steps) interrupt->start(what.c_str());
+        solver.finalGather(options.gather, interrupt);
+        if (steps) interrupt->end();
+    }
+    if (framed) interrupt->end();
     return solver.grids();
 }
 

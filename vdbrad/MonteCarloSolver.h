@@ -30,10 +30,12 @@
 // carried-in noise is added from the stored pass's own estimate; with >= 256 stored rays the
 // reported error then matches the spread of independent solves (tests/test_montecarlo.cc).
 //
-// Empty space: the traversal jumps over empty tree nodes (tiles and missing children of the
-// index tree) to where the ray leaves them. Memory: S hit indices per voxel (4 S bytes).
+// Empty space: the traversal (marchVoxels, VoxelMarch.h) jumps over empty tree nodes (tiles and
+// missing children of the index tree) to where the ray leaves them. Memory: S hit indices per
+// voxel (4 S bytes).
 #pragma once
 
+#include "vdbrad/FixedPointIteration.h"
 #include "vdbrad/OutputGrids.h"
 #include "vdbrad/Scene.h"
 
@@ -41,6 +43,7 @@
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace vdbrad {
@@ -55,6 +58,9 @@ struct MonteCarloOptions
     double tolerance = 1e-5;
     /// Seed of the per-voxel ray sequences.
     uint64_t seed = 1;
+    /// solveMonteCarlo(): rays per voxel of a final gather after iterating (gather()), >= 0;
+    /// 0: none.
+    int gather = 0;
 };
 
 /// Radiosity and standard error of gathered voxels (grey or RGB, as the scene).
@@ -64,7 +70,7 @@ struct MonteCarloGather
     std::vector<openvdb::Vec3f> rgb, rgbError;
 };
 
-class MonteCarloSolver
+class MonteCarloSolver : public IterativeSolver
 {
 public:
     static constexpr uint32_t kSky = 0xffffffffu;   ///< a ray that leaves the scene
@@ -80,8 +86,9 @@ public:
     double iterate(openvdb::util::NullInterrupter* interrupt = nullptr);
     /// Iterate until the tolerance or the cap. @throw vdbrad::Cancelled if interrupted.
     void solve(openvdb::util::NullInterrupter* interrupt = nullptr);
-    bool converged() const;
-    int iterationCount() const { return int(mResiduals.size()); }
+    /// One line saying what a solve of @a scene with @a options does.
+    static std::string describe(const Scene& scene, const MonteCarloOptions& options);
+    std::string describe() const { return describe(mScene, mOptions); }
 
     static constexpr int kGatherBatches = 8;   ///< independent batches of a final gather
 
@@ -124,14 +131,16 @@ private:
     std::vector<char> mClosed;   // per voxel: faces a closed cavity (Enclosure.h)
     std::vector<float> mGrey, mGreyError;
     std::vector<openvdb::Vec3f> mRgb, mRgbError;
-    std::vector<double> mResiduals;
     int mGathered = 0;   // rays of the final gather that made B, 0 if none
-    double mSeconds = 0.0;
 };
 
 /// @brief Solve @a scene by Monte Carlo: returns the `radiosity` and `radiosity_stderr` grids.
+/// Then, with MonteCarloOptions::gather, a final gather. @a control: reports (SolveControl; a
+/// Monte Carlo solve keeps no checkpoints).
+/// @throw openvdb::ValueError for invalid options; vdbrad::Cancelled if interrupted
 openvdb::GridPtrVec solveMonteCarlo(const Scene& scene,
     const MonteCarloOptions& options = MonteCarloOptions(),
-    openvdb::util::NullInterrupter* interrupt = nullptr);
+    openvdb::util::NullInterrupter* interrupt = nullptr,
+    const SolveControl& control = SolveControl());
 
 } // namespace vdbrad

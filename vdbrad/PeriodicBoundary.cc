@@ -96,6 +96,24 @@ PeriodicBoundary::PeriodicBoundary(const openvdb::CoordBBox& box, int up,
     });
 }
 
+Coord
+PeriodicBoundary::copies(const Coord& dim, int up, int minPeriod, size_t directions,
+    double depth)
+{
+    Coord copies(1);
+    const int width = minPeriod > 0 ? minPeriod
+        : int(std::ceil(0.5 * std::sqrt(double(directions))));
+    for (int k = 0; k < 3; ++k) {
+        if (k == up || dim[k] >= width) continue;
+        int c = (width + dim[k] - 1) / dim[k];
+        if (minPeriod < 0 && depth > 0.0) {
+            c = int(std::min<double>(c, std::max(1.0, std::ceil(8.0 / (depth * dim[k])))));
+        }
+        copies[k] = c;
+    }
+    return copies;
+}
+
 LinePartition
 PeriodicBoundary::partition(const Coord& sigma) const
 {

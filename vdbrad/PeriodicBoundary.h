@@ -44,6 +44,14 @@ public:
     /// direction: geometry only).
     PeriodicBoundary(const openvdb::CoordBBox& box, int up, const SweepSchedule& schedule);
 
+    /// @brief How many copies of a box of @a dim voxels to solve side by side along each axis
+    /// (CloudTransferOptions::minPeriod): along each horizontal axis narrower than
+    /// @a minPeriod voxels (-1: ceil(sqrt(directions) / 2)), enough to be that wide, and with
+    /// -1 no more than make one period 8 mean optical depths wide (@a depth: the box's mean
+    /// optical depth per voxel; light crossing such a period horizontally is gone).
+    static openvdb::Coord copies(const openvdb::Coord& dim, int up, int minPeriod,
+        size_t directions, double depth);
+
     int layers() const { return mLayers; }
     /// Entries of one direction's slice, and where direction @a d's starts.
     size_t sliceSize() const { return size_t(2 * 6 * mLayers); }

@@ -5,7 +5,9 @@
 #include "vdbrad/Errors.h"
 #include "vdbrad/LeafOrder.h"
 #include "vdbrad/LineSweep.h"
+#include "vdbrad/Precision.h"
 #include "vdbrad/RayCastVisibility.h"
+#include "vdbrad/SweepSchedule.h"
 #include "vdbrad/TextFormat.h"
 #include "vdbrad/VisibilityCache.h"
 
@@ -31,103 +33,9 @@ namespace vdbrad {
 // and 1.6e5 leaves: 44 MiB, 0.8 s. Larger boxes keep their digitisation losses.
 constexpr uint64_t kEnclosureBlocks = uint64_t(1) << 29;
 
-// Above this albedo, Precision::Auto solves in double: the float floor (~6e-8 of B per sweep,
-// amplified by 1 / (1 - rho) at the fixed point) would exceed ~1e-5 (BENCHMARKS.md, Extremes).
-constexpr float kDoubleAlbedo = 0.999f;
-
 namespace {
-
-// The four state types: grey or RGB, float or double (Precision). Scalar is one channel; Acc is
-// a group's accumulator, Wide the type the groups are added in.
-//
-// In float, each group sums about directions / kGroups terms per voxel: float keeps those short
-// sums to ~1e-6 relative and halves the memory traffic of the sweeps' hottest write; the groups
-// are added in double. In double everything is double (the hit weights too), so that a closed
-// room's renormalised weights add up to 1 within ~1e-15 and 1 / (1 - rho) = 1e6 leaves 1e-9.
-template<typename ValueT> struct Traits;
-template<> struct Traits<float> { using Acc = float; using Wide = double; using Scalar = float; };
-template<> struct Traits<openvdb::Vec3f>
-{
-    using Acc = openvdb::Vec3f;
-    using Wide = openvdb::Vec3d;
-    using Scalar = float;
-};
-template<> struct Traits<double> { using Acc = double; using Wide = double; using Scalar = double; };
-template<> struct Traits<openvdb::Vec3d>
-{
-    using Acc = openvdb::Vec3d;
-    using Wide = openvdb::Vec3d;
-    using Scalar = double;
-};
-
-// Largest channel of a value, and of a difference (computed in the value's own precision).
-template<typename T> double magnitude(T v) { return std::abs(double(v)); }
-template<typename T> double magnitude(const openvdb::math::Vec3<T>& v)
-{
-    return double(std::max({v[0], v[1], v[2]}));
-}
-template<typename T> double magnitudeOfDiff(T a, T b) { return magnitude(a - b); }
-template<typename T>
-double magnitudeOfDiff(const openvdb::math::Vec3<T>& a, const openvdb::math::Vec3<T>& b)
-{
-    const openvdb::math::Vec3<T> d = a - b;
-    return double(std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])}));
-}
-template<typename ValueT> ValueT value(const Attribute& a, size_t i);
-template<> inline float value<float>(const Attribute& a, size_t i) { return a.grey(i); }
-template<> inline openvdb::Vec3f value<openvdb::Vec3f>(const Attribute& a, size_t i)
-{
-    return a.rgb(i);
-}
-template<> inline double value<double>(const Attribute& a, size_t i) { return a.grey(i); }
-template<> inline openvdb::Vec3d value<openvdb::Vec3d>(const Attribute& a, size_t i)
-{
-    return openvdb::Vec3d(a.rgb(i));
-}
-
-// Largest albedo channel of any voxel.
-float
-maxAlbedo(const Attribute& a)
-{
-    float top = a.uniformValue();
-    for (float v : a.greyArray()) top = std::max(top, v);
-    for (const openvdb::Vec3f& v : a.rgbArray()) top = std::max({top, v[0], v[1], v[2]});
-    return top;
-}
-
-bool
-solvesInDouble(const Scene& scene, const RadiosityOptions& options)
-{
-    switch (options.precision) {
-        case Precision::Float: return false;
-        case Precision::Double: return true;
-        case Precision::Auto: break;
-    }
-    return maxAlbedo(scene.albedo()) > kDoubleAlbedo;
-}
-
+using namespace detail;   // Precision.h: the state types
 } // namespace
-
-Precision
-precisionFromString(const std::string& name)
-{
-    if (name == "auto") return Precision::Auto;
-    if (name == "float") return Precision::Float;
-    if (name == "double") return Precision::Double;
-    OPENVDB_THROW(openvdb::ValueError, "unknown precision '" << name
-        << "' (expected auto, float or double)");
-}
-
-const char*
-toString(Precision p)
-{
-    switch (p) {
-        case Precision::Float: return "float";
-        case Precision::Double: return "double";
-        case Precision::Auto: break;
-    }
-    return "auto";
-}
 
 // What the solver needs that does not depend on the value type.
 struct RadiositySolver::Impl
@@ -200,13 +108,9 @@ struct RadiositySolver::Impl
     }
 };
 
-// Kept directions replayed together (a flush of the queue). Each block of kReplayBlock voxels
-// takes every queued direction in turn, so that the block's group sums and normals stay in the
-// first-level cache (24 KiB, RGB) while the directions' reports and seen radiosity stream by.
-// Blocks of 256-4096 voxels and 8-128 directions per flush all replayed within ~10% of each
-// other on the Cornell box (BENCHMARKS.md); 32 keeps progress and cancellation prompt.
-constexpr size_t kReplayed = 32;
-static_assert(VisibilityCache::kNone == LineSweep::kNone, "reports are LineSweep::seen()'s");
+constexpr size_t kReplayed = VisibilityCache::kReplayed;
+static_assert(RadiositySolver::kGroups == SweepSchedule::kGroups, "one group count");
+static_assert(RadiositySolver::kReplayBlock == VisibilityCache::kReplayBlock, "one block size");
 
 template<typename ValueT>
 struct RadiositySolver::Engine
@@ -239,59 +143,20 @@ struct RadiositySolver::Engine
         return residual;
     }
 
-    // A report that the cache did not keep, read entry by entry as VisibilityCache::Reader
-    // reads a kept one.
-    struct RawReader
-    {
-        const uint32_t* at;
-        bool next(uint32_t& y)
-        {
-            y = *at++;
-            return y != LineSweep::kNone;
-        }
-    };
-
-    // Replay the reports of @a count directions @a ks, in order, read by @a readers: G[x] (and
-    // H[x]) receive the same terms in the same order as from one sweep per direction, so the
-    // same bits. In blocks of voxels, the block's G (12 bytes per voxel, RGB) and normals (12
-    // more) come from memory once for all @a count directions, not once per direction against
-    // ~1.2 bytes of report; what is left is decoding and the scattered reads of Bp[y].
+    // Replay kept or raw reports of @a count directions @a ks into G (and H).
     template<bool Hits, typename ReaderT>
-    static void replay(const RadiositySolver& s, const LineSweep& sweep, const size_t* ks,
+    static void replayed(const RadiositySolver& s, const LineSweep& sweep, const size_t* ks,
         ReaderT* readers, size_t count, const std::vector<ValueT>& Bp, std::vector<AccT>& G,
         std::vector<Scalar>* H)
     {
-        const Impl& impl = *s.mImpl;
         std::array<float, kReplayed> c;
         std::array<openvdb::Coord, kReplayed> sigma;
         for (size_t j = 0; j < count; ++j) {
-            c[j] = impl.coefficient[ks[j]];
+            c[j] = s.mImpl->coefficient[ks[j]];
             sigma[j] = s.directions().direction(ks[j]);
         }
-        const uint32_t n = uint32_t(G.size());
-        // Raw pointers and a block of sigma . n computed in vector lanes, so that the gather
-        // loop reloads nothing it could keep in registers (through the vectors, it did: the
-        // compiler could not prove the sums' stores leave them alone).
-        const ValueT* bp = Bp.data();
-        AccT* g = G.data();
-        Scalar* h = Hits ? H->data() : nullptr;
-        std::array<float, kReplayBlock> facing;
-        for (uint32_t x0 = 0, x1; x0 < n; x0 = x1) {
-            x1 = x0 + std::min(kReplayBlock, n - x0);
-            for (size_t j = 0; j < count; ++j) {
-                sweep.facing(sigma[j], x0, x1, facing.data());
-                const float cj = c[j];
-                ReaderT reader = readers[j];   // in registers across the block
-                for (uint32_t x = x0; x < x1; ++x) {
-                    uint32_t y;
-                    if (!reader.next(y)) continue;
-                    const float w = std::abs(facing[x - x0]) * cj;
-                    g[x] += bp[y] * w;
-                    if constexpr (Hits) h[x] += w;
-                }
-                readers[j] = reader;
-            }
-        }
+        replay<Hits>(sweep, sigma.data(), c.data(), readers, count, Bp.data(), G.data(),
+            Hits ? H->data() : static_cast<Scalar*>(nullptr), uint32_t(G.size()));
     }
 
     // Group g's directions gathered into G (and their hit weights into H), from Bp (the
@@ -315,7 +180,7 @@ struct RadiositySolver::Engine
             for (size_t j = 0; j < count; ++j) {
                 readers[j] = VisibilityCache::Reader(*impl.cache, queued[j]);
             }
-            replay<Hits>(s, *pattern.sweep, queued.data(), readers.data(), count, Bp, G, H);
+            replayed<Hits>(s, *pattern.sweep, queued.data(), readers.data(), count, Bp, G, H);
             progress.finished(count);
             count = 0;
         };
@@ -335,8 +200,8 @@ struct RadiositySolver::Engine
                 impl.offered[k] = 1;
                 if (!impl.cache->has(k)) {
                     flush();
-                    RawReader raw{report.seen.data()};
-                    replay<Hits>(s, *pattern.sweep, &k, &raw, 1, Bp, G, H);
+                    RawReport raw{report.seen.data()};
+                    replayed<Hits>(s, *pattern.sweep, &k, &raw, 1, Bp, G, H);
                     progress.finished(1);
                     continue;
                 }
@@ -460,10 +325,10 @@ struct RadiositySolver::Engine
 };
 
 RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& options)
-    : mScene(scene)
+    : IterativeSolver(FixedPointIteration(options.maxIterations, options.tolerance,
+          options.accelerate, options.andersonDepth))
+    , mScene(scene)
     , mOptions(options)
-    , mIteration(options.maxIterations, options.tolerance, options.accelerate,
-          options.andersonDepth)
     , mImpl(new Impl)
 {
     if (options.directions < 1) {
@@ -494,28 +359,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         impl.coefficient[k] = float(directions.factor(k) / openvdb::Vec3d(d.asVec3d()).length());
     }
     // Per-voxel normalisation of the direction factors (DirectionSet.h).
-    impl.invZ.resize(n);
-    // Z costs one pass over the directions per voxel; walls of explicit scenes repeat a few
-    // normals many times, so each range remembers the last few it computed.
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
-        std::array<std::pair<openvdb::Vec3f, double>, 8> recent;
-        size_t filled = 0, next = 0;
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const openvdb::Vec3f& nrm = scene.normal(i);
-            double inv = 0.0;
-            bool found = false;
-            for (size_t k = 0; k < filled && !found; ++k) {
-                if (recent[k].first == nrm) { inv = recent[k].second; found = true; }
-            }
-            if (!found) {
-                inv = 1.0 / directions.hemisphereSum(openvdb::Vec3d(nrm));
-                recent[next] = {nrm, inv};
-                next = (next + 1) % recent.size();
-                filled = std::min(filled + 1, recent.size());
-            }
-            impl.invZ[i] = inv;
-        }
-    });
+    impl.invZ = directions.inverseHemisphereSums(scene.normals());
     impl.regions = findRegions(scene.voxels(), scene.normals(), options.lines, kEnclosureBlocks);
     const std::vector<uint32_t>* regions = impl.regions.cavities > 0 ? &impl.regions.region
                                                                       : nullptr;
@@ -531,7 +375,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
             options.occlusionDepth, regions));
     }
 
-    impl.wide = solvesInDouble(scene, options);
+    impl.wide = solvesInDouble(scene.albedo(), options.precision);
     impl.withState(scene.isRgb(), [&](auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using ValueT = typename decltype(st.B)::value_type;
@@ -624,30 +468,13 @@ RadiositySolver::setRadiosity(const std::vector<openvdb::Vec3f>& b)
     replaceIterate(b);
 }
 
-namespace {
-
-uint64_t
-hashAttribute(const Attribute& a, uint64_t h)
-{
-    const int64_t kind[1] = {int64_t(a.storage())};
-    const float uniform = a.uniformValue();
-    h = hashBytes(kind, sizeof kind, h);
-    h = hashBytes(&uniform, sizeof uniform, h);
-    h = hashBytes(a.greyArray().data(), a.greyArray().size() * sizeof(float), h);
-    return hashBytes(a.rgbArray().data(), a.rgbArray().size() * sizeof(openvdb::Vec3f), h);
-}
-
-} // namespace
-
 size_t
 RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& options, int threads)
 {
-    const bool wide = solvesInDouble(scene, options);
+    const bool wide = solvesInDouble(scene.albedo(), options.precision);
     const size_t channels = scene.isRgb() ? 3 : 1, scalar = wide ? 8 : 4;
     const size_t n = scene.size(), c = channels * scalar, t = size_t(std::max(threads, 1));
-    // Four visiting-order layouts: order and position (u32 each), the sweep's coordinates,
-    // normals and regions in that order.
-    size_t perVoxel = 4 * (4 + 4 + 12 + 12 + 4);
+    size_t perVoxel = SweepSchedule::bytesPerVoxel(true, true, true);
     perVoxel += 8 + 4;                      // invZ, region
     perVoxel += 2 * c + 4 * c;              // B, the previous B, B in each pattern's order
     if (wide) perVoxel += channels * 4;     // B rounded to float
@@ -686,8 +513,8 @@ RadiositySolver::fingerprint() const
     uint64_t h = hashBytes("vdbrad solve", 12);
     h = hashBytes(v.coords().data(), v.size() * sizeof(openvdb::Coord), h);
     h = hashBytes(mScene.normals().data(), mScene.size() * sizeof(openvdb::Vec3f), h);
-    h = hashAttribute(mScene.albedo(), h);
-    h = hashAttribute(mScene.emission(), h);
+    h = mScene.albedo().hash(h);
+    h = mScene.emission().hash(h);
     const int64_t options[8] = {mOptions.directions, int64_t(mOptions.lines),
         int64_t(mOptions.update), int64_t(mOptions.visibility), int64_t(mOptions.accelerate),
         mOptions.andersonDepth, int64_t(directions().size()), int64_t(mImpl->wide)};

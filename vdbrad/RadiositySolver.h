@@ -16,15 +16,9 @@
 // shooting sweeps the unshot radiosity and adds what it delivers (one bounce per iteration). The relative
 // residual max|B' - B| / max|B'| over a whole iteration is reported per iteration.
 //
-// Precision: storage is float; each accumulator group sums about directions / kGroups terms per
-// voxel in float (~1e-6 relative), and the groups, the per-voxel normalisation and the residual
-// are computed in double. That is enough while 1 / (1 - rho) is moderate, but the fixed point
-// amplifies any rounding of B or of the gathered light by 1 / (1 - rho): at rho = 1 - 1e-6 float
-// leaves errors of a few percent whatever the iteration count. So a scene with an albedo above
-// 0.999 is solved in double throughout (B, the lines' payloads, the accumulators, the hit
-// weights, the Anderson history): Precision::Auto; Float and Double force either.
+// Precision: float, or double for albedos near 1 (Precision.h).
 //
-// Threads: directions are dealt to a fixed number of groups (kGroups, independent of the thread
+// Threads: directions are dealt to a fixed number of groups (SweepSchedule.h, independent of the thread
 // count); each group sweeps its directions one after the other into its own accumulator, and the
 // accumulators are added in group order. So the result is bit-identical for any thread count.
 // A grey scene (no RGB input) is solved in floats; an RGB one in Vec3f, with no cost to the other.
@@ -36,8 +30,8 @@
 #include "vdbrad/FixedPointIteration.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/OutputGrids.h"
+#include "vdbrad/Precision.h"
 #include "vdbrad/Scene.h"
-#include "vdbrad/SweepSchedule.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
@@ -74,19 +68,6 @@ enum class Visibility
     RayCast
 };
 
-/// The floating-point type of the solver's state (see the file comment).
-enum class Precision
-{
-    /// Double when some albedo exceeds 0.999, float otherwise.
-    Auto,
-    Float,
-    Double
-};
-
-/// "auto", "float" or "double"; throws openvdb::ValueError otherwise.
-Precision precisionFromString(const std::string& name);
-const char* toString(Precision p);
-
 struct RadiosityOptions
 {
     /// Number of direction pairs (one sweep serves s and -s); the nearest count a discrete
@@ -115,18 +96,18 @@ struct RadiosityOptions
     Precision precision = Precision::Auto;
     /// Bytes the solver may keep to remember what each voxel sees along each direction
     /// (VisibilityCache.h, ~1-2 bytes per voxel and direction): a kept direction is swept
-    /// once, and later iterations gather along it instead of sweeping it (3-4x faster; the
-    /// same results, bit for bit). Directions are kept while the budget lasts. 0, or a single
+    /// once, and later iterations gather along it instead of sweeping it (faster: BENCHMARKS.md,
+    /// "Visibility cache"; the same results, bit for bit). Directions are kept while the budget lasts. 0, or a single
     /// iteration: every iteration sweeps every direction.
     size_t visibilityCache = 0;
 };
 
-class RadiositySolver
+class RadiositySolver : public IterativeSolver
 {
 public:
     /// Accumulator groups: fixed, so that results do not depend on the thread count.
-    static constexpr int kGroups = SweepSchedule::kGroups;
-    /// Kept directions are replayed in blocks of this many voxels (RadiositySolver.cc).
+    static constexpr int kGroups = 8;   // SweepSchedule::kGroups
+    /// Kept directions are replayed in blocks of this many voxels (VisibilityCache.h).
     static constexpr uint32_t kReplayBlock = 1024;
 
     /// @brief Prepare the solve: directions, sweep orders, per-voxel normalisation. B starts at E.
@@ -143,12 +124,6 @@ public:
     /// @brief Iterate until the tolerance or the iteration cap.
     void solve(openvdb::util::NullInterrupter* interrupt = nullptr);
 
-    /// True once the last residual is below the tolerance.
-    bool converged() const { return mIteration.converged(); }
-    /// Converged, or at the iteration cap.
-    bool finished() const { return mIteration.finished(); }
-    int iterationCount() const { return mIteration.iterationCount(); }
-    const std::vector<double>& residuals() const { return mIteration.residuals(); }
     const DirectionSet& directions() const;
     /// One line saying what is solved: voxels, directions, lines, colour, acceleration,
     /// precision (what `vdbrad solve` prints before iterating).
@@ -205,7 +180,6 @@ private:
     template<typename ValueT> void replaceIterate(const std::vector<ValueT>& b);
     const Scene& mScene;
     RadiosityOptions mOptions;
-    FixedPointIteration mIteration;
     std::unique_ptr<Impl> mImpl;
 };
 

@@ -6,6 +6,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -190,6 +191,20 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     result.incident = double(enteredRays.load()) * rayPower;
     result.transmitted = double(keptFixed.load()) / kFixed * rayPower;
     return result;
+}
+
+openvdb::Vec3d
+sunDirection(double zenith, double azimuth, int up, const openvdb::math::Transform& transform)
+{
+    constexpr double kPi = 3.14159265358979323846;
+    const int a1 = (up + 1) % 3, a2 = (up + 2) % 3;
+    const int first = std::min(a1, a2), second = std::max(a1, a2);
+    const double zen = zenith * kPi / 180.0, az = azimuth * kPi / 180.0;
+    openvdb::Vec3d toSunWorld(0.0);
+    toSunWorld[up] = std::cos(zen);
+    toSunWorld[first] = std::sin(zen) * std::cos(az);
+    toSunWorld[second] = std::sin(zen) * std::sin(az);
+    return transform.baseMap()->applyInverseJacobian(toSunWorld);
 }
 
 } // namespace vdbrad

@@ -45,6 +45,13 @@ struct SolarBeamResult
 /// @param raysPerVoxel rays per voxel along each axis of the beam's cross-section, >= 1
 /// @param irradiance   F0, beam irradiance on a plane normal to it, >= 0
 /// @throw openvdb::ValueError for invalid arguments; vdbrad::Cancelled if @a interrupt asks
+/// @brief The unit direction towards the sun in @a transform's index space, from its zenith
+/// angle (from the @a up axis) and azimuth (from the first horizontal axis towards the second:
+/// up y: x then z; up z: x then y; up x: y then z), in degrees. The transform is a uniform
+/// scale plus a rotation: world directions map to index ones by the inverse Jacobian.
+openvdb::Vec3d sunDirection(double zenith, double azimuth, int up,
+    const openvdb::math::Transform& transform);
+
 SolarBeamResult traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const openvdb::Vec3d& toSun, int up, bool periodic, int raysPerVoxel = 2,
     double irradiance = 1.0, openvdb::util::NullInterrupter* interrupt = nullptr);

@@ -1,6 +1,6 @@
 // VoxelMarch: the voxels of a VoxelIndex that a straight ray crosses, in order, with exact chord
-// lengths: what the renderer (first hits, cloud emission-absorption) and the solar beam (beam
-// deposits) both need.
+// lengths: what the renderer (first hits, cloud emission-absorption), the solar beam (beam
+// deposits) and the Monte Carlo solver (what a ray hits) all need.
 #pragma once
 
 #include "vdbrad/VoxelIndex.h"

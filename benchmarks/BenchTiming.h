@@ -1,0 +1,26 @@
+// What every benchmark times with: the best of a few runs of a piece of work.
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <functional>
+
+namespace vdbrad {
+namespace bench {
+
+/// Best of @a reps runs of @a f, in seconds (the least disturbed by the rest of the machine).
+inline double
+timeIt(const std::function<void()>& f, int reps = 3)
+{
+    double best = 1e300;
+    for (int i = 0; i < reps; ++i) {
+        const auto t0 = std::chrono::steady_clock::now();
+        f();
+        best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+            .count());
+    }
+    return best;
+}
+
+} // namespace bench
+} // namespace vdbrad

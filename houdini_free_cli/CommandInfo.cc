@@ -1,0 +1,249 @@
+// `vdbrad info`, `surface` and `compare`: look at a file, at what the solver will see in it, and
+// at how far one solve is from another.
+#include "Commands.h"
+#include "Progress.h"
+#include "ToolSupport.h"
+
+#include "vdbrad/vdbrad.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <sstream>
+
+namespace vdbrad {
+namespace cli {
+
+namespace {
+
+// The file's metadata, then one line per grid: type, class, voxels, memory, bounds.
+void
+describeGrids(std::ostream& os, const std::string& label, const VdbFile& file)
+{
+    os << label << ": " << file.grids.size() << " grid" << (file.grids.size() == 1 ? "" : "s");
+    for (auto it = file.metadata->beginMeta(); it != file.metadata->endMeta(); ++it) {
+        os << (it == file.metadata->beginMeta() ? "; " : ", ") << it->first << " = "
+           << it->second->str();
+    }
+    os << "\n";
+    for (const auto& g : file.grids) {
+        const openvdb::CoordBBox box = g->evalActiveVoxelBoundingBox();
+        os << "  '" << g->getName() << "'  " << g->valueType() << ", "
+           << openvdb::GridBase::gridClassToString(g->getGridClass()) << ", "
+           << withCommas(g->activeVoxelCount()) << " active voxels, voxel size "
+           << g->transform().voxelSize()[0] << ", " << formatBytes(double(g->memUsage())) << "\n";
+        if (!box.empty()) {
+            const openvdb::BBoxd world = g->transform().indexToWorld(box);
+            os << "      index " << box.min() << " .. " << box.max() << ", world " << world.min()
+               << " .. " << world.max() << "\n";
+        }
+    }
+}
+
+// A scene attribute's range and non-zero voxels, or @a absent when the file has no grid for it.
+std::string
+describeAttribute(const Attribute& a, const char* absent)
+{
+    if (a.isUniform()) return absent;
+    float lo = std::numeric_limits<float>::max(), hi = -lo;
+    size_t nonZero = 0;
+    const size_t n = a.isRgb() ? a.rgbArray().size() : a.greyArray().size();
+    for (size_t i = 0; i < n; ++i) {
+        const openvdb::Vec3f c = a.rgb(i);
+        lo = std::min({lo, c[0], c[1], c[2]});
+        hi = std::max({hi, c[0], c[1], c[2]});
+        if (c[0] != 0.f || c[1] != 0.f || c[2] != 0.f) ++nonZero;
+    }
+    std::ostringstream os;
+    os << (a.isRgb() ? "RGB" : "grey") << " grid, values in [" << lo << ", " << hi << "], "
+       << withCommas(nonZero) << " non-zero voxels";
+    return os.str();
+}
+
+// The `radiosity` grid of a file as per-voxel channel values (1 or 3 per voxel), by coordinate.
+std::map<openvdb::Coord, openvdb::Vec3d>
+radiosityValues(const VdbFile& file, const std::string& label, int& channels)
+{
+    const openvdb::GridBase::ConstPtr grid = findGrid(file.grids, names::kRadiosity);
+    if (!grid) throw UserError(label + ": no grid named 'radiosity' (solve it first)");
+    // One map entry per voxel: a huge active tile must fail here, not exhaust memory.
+    forFile(label, [&] { VoxelIndex::checkVoxelCount(grid->activeVoxelCount()); });
+    std::map<openvdb::Coord, openvdb::Vec3d> values;
+    auto add = [&](const openvdb::Coord& xyz, const openvdb::Vec3d& v) {
+        if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) {
+            std::ostringstream os;
+            os << label << ": radiosity at voxel " << formatCoord(xyz) << " is "
+               << (std::isfinite(v[0]) ? std::isfinite(v[1]) ? v[2] : v[1] : v[0]);
+            throw UserError(os.str());
+        }
+        values[xyz] = v;
+    };
+    if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) {
+        channels = 1;
+        for (auto it = f->cbeginValueOn(); it; ++it) add(it.getCoord(), openvdb::Vec3d(*it, 0, 0));
+    } else if (auto v = openvdb::GridBase::constGrid<openvdb::Vec3SGrid>(grid)) {
+        channels = 3;
+        for (auto it = v->cbeginValueOn(); it; ++it) add(it.getCoord(), openvdb::Vec3d(*it));
+    } else {
+        throw UserError(label + ": grid 'radiosity' is " + grid->valueType()
+            + ", expected float or vec3s");
+    }
+    return values;
+}
+
+} // namespace
+
+int
+runInfo(const Arguments& a)
+{
+    const std::string in = a.positional()[0];
+    const SceneOptions options = sceneOptions(a);
+    const VdbFile file = readInput(in);
+    const std::string label = inputLabel(in);
+    describeGrids(std::cout, label, file);
+
+    const GridRoles roles = forFile(label, [&] {
+        return identifyRoles(file.grids, options.surface);
+    });
+    std::cout << "scene contract:\n";
+    int status = 0;
+    // The first problem is the one error line; a second one (a file with a bad surface and a bad
+    // cloud) is described with the rest, on standard output.
+    auto report = [&](const char* role, const std::exception& e) {
+        std::cout << "  " << role << " error: " << errorMessage(e) << "\n";
+        std::cout.flush();
+        if (status == 0) std::cerr << "vdbrad: error: " << label << ": " << errorMessage(e) << "\n";
+        status = 1;
+    };
+    if (roles.surface) {
+        try {
+            ProgressInterrupter progress(true);
+            const Scene scene = buildScene(file.grids, options, &progress);
+            std::cout << "  surface:   " << withCommas(scene.size()) << " surface voxels from "
+                      << (scene.surfaceKind() == GridRoles::SurfaceKind::LevelSet
+                             ? "level set '" : "normal grid '")
+                      << scene.surfaceName() << "'";
+            if (scene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
+                std::cout << " (" << options.separation << "-separating)";
+            }
+            std::cout << ", " << formatBytes(double(scene.memUsage())) << " in memory\n";
+            std::cout << "  albedo:    " << describeAttribute(scene.albedo(),
+                ("none: uniform " + std::to_string(options.defaultAlbedo) + " (--albedo)").c_str())
+                      << "\n";
+            std::cout << "  emission:  " << describeAttribute(scene.emission(), "none") << "\n";
+            std::cout << "  solution:  " << (scene.isRgb() ? "RGB" : "grey") << " radiosity\n";
+            if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+        } catch (const std::exception& e) {
+            report("surface:  ", e);
+        }
+    } else {
+        std::cout << "  surface:   none (no level set, no vec3s grid named 'normal')\n";
+    }
+    if (roles.density) {
+        try {
+            const Cloud cloud = buildCloud(file.grids);
+            float lo = std::numeric_limits<float>::max(), hi = 0.f;
+            for (float s : cloud.extinctionArray()) { lo = std::min(lo, s); hi = std::max(hi, s); }
+            std::cout << "  cloud:     " << withCommas(cloud.size()) << " medium voxels from '"
+                      << cloud.densityName() << "', extinction in [" << lo << ", " << hi
+                      << "] per world unit, max optical depth per voxel "
+                      << hi * cloud.voxelSize() << "\n";
+            std::cout << "  cloud albedo: " << describeAttribute(cloud.albedo(), "none: 1") << "\n";
+        } catch (const std::exception& e) {
+            report("cloud:    ", e);
+        }
+    } else {
+        std::cout << "  cloud:     none (no float grid named 'density')\n";
+    }
+    // A solved file: the result and how it was obtained.
+    const openvdb::GridBase::ConstPtr result = findGrid(file.grids, names::kRadiosity);
+    if (result) {
+        float lo = std::numeric_limits<float>::max(), hi = -lo;
+        auto range = [&](const openvdb::Vec3f& c) {
+            lo = std::min({lo, c[0], c[1], c[2]});
+            hi = std::max({hi, c[0], c[1], c[2]});
+        };
+        if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(result)) {
+            for (auto it = f->cbeginValueOn(); it; ++it) range(openvdb::Vec3f(*it));
+        } else if (auto v = openvdb::GridBase::constGrid<openvdb::Vec3SGrid>(result)) {
+            for (auto it = v->cbeginValueOn(); it; ++it) range(*it);
+        }
+        std::cout << "  radiosity: " << result->valueType() << ", values in [" << lo << ", " << hi
+                  << "]";
+        for (const char* key : {meta::kDirections, meta::kIterations, meta::kResidual,
+                 meta::kLines, meta::kSeconds, meta::kVersion}) {
+            if (auto m = (*result)[key]) std::cout << ", " << key + 7 << " " << m->str();
+        }
+        std::cout << "\n";
+    }
+    std::vector<std::string> passed;
+    for (const auto& g : file.grids) {
+        if (g == result) continue;
+        if (g != roles.surface && g != roles.albedo && g != roles.emission && g != roles.density) {
+            passed.push_back("'" + g->getName() + "'");
+        }
+    }
+    if (!passed.empty()) {
+        std::cout << "  passed through:";
+        for (const auto& p : passed) std::cout << " " << p;
+        std::cout << "\n";
+    }
+    return status;
+}
+
+int
+runSurface(const Arguments& a)
+{
+    const std::string in = a.positional()[0], out = a.positional()[1];
+    const SceneOptions options = sceneOptions(a);
+    checkOutput(out, {in}, a.flag("overwrite"));
+    const VdbFile file = readInput(in);
+    const std::string label = inputLabel(in);
+    ProgressInterrupter progress(a.flag("quiet"));
+    const Scene scene = forFile(label, [&] { return buildScene(file.grids, options, &progress); });
+    if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+    writeOutput(withGrids(file, sceneToGrids(scene)), out);
+    return 0;
+}
+
+int
+runCompare(const Arguments& a)
+{
+    const std::string pathA = a.positional()[0], pathB = a.positional()[1];
+    const std::string labelA = inputLabel(pathA), labelB = inputLabel(pathB);
+    int channelsA = 0, channelsB = 0;
+    const auto A = radiosityValues(readInput(pathA), labelA, channelsA);
+    const auto B = radiosityValues(readInput(pathB), labelB, channelsB);
+    if (channelsA != channelsB) {
+        throw UserError(labelA + " and " + labelB + ": one radiosity is grey, the other RGB");
+    }
+    if (A.size() != B.size()) {
+        throw UserError(labelA + " and " + labelB + ": radiosity on " + withCommas(A.size())
+            + " and " + withCommas(B.size()) + " voxels: not the same scene");
+    }
+    // B is the reference: mean |A - B| / mean |B| and max |A - B| / max |B| over voxels and
+    // channels, the figures of BENCHMARKS.md's trade study.
+    double diff = 0.0, total = 0.0, worst = 0.0, largest = 0.0;
+    for (const auto& [xyz, b] : B) {
+        const auto it = A.find(xyz);
+        if (it == A.end()) {
+            throw UserError(labelA + " and " + labelB + ": radiosity voxels differ (e.g. "
+                + formatCoord(xyz) + "): not the same scene");
+        }
+        for (int c = 0; c < channelsB; ++c) {
+            const double d = std::abs(it->second[c] - b[c]);
+            diff += d;
+            total += std::abs(b[c]);
+            worst = std::max(worst, d);
+            largest = std::max(largest, std::abs(b[c]));
+        }
+    }
+    std::cout << "voxels " << B.size() << " mean_rel " << (total > 0.0 ? diff / total : 0.0)
+              << " max_rel " << (largest > 0.0 ? worst / largest : 0.0) << "\n";
+    return 0;
+}
+
+} // namespace cli
+} // namespace vdbrad

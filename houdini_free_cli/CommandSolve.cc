@@ -1,0 +1,102 @@
+// `vdbrad solve`: the radiosity of a surface scene, by the line sweeps (RadiositySolver) or a
+// reference: ray marching along the same lines, or Monte Carlo rays (MonteCarloSolver).
+#include "Commands.h"
+#include "Progress.h"
+#include "SolveSupport.h"
+#include "ToolSupport.h"
+
+#include "vdbrad/MonteCarloSolver.h"
+#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/vdbrad.h"
+
+#include <algorithm>
+#include <iostream>
+
+namespace vdbrad {
+namespace cli {
+
+namespace {
+
+// --visibility-cache: bytes, or -1 for auto (half of what --max-memory leaves to the solve).
+double
+visibilityCacheOption(const Arguments& a)
+{
+    const std::string text = a.getString("visibility-cache");
+    return text == "auto" ? -1.0 : parseBytes("visibility-cache", text, true);
+}
+
+} // namespace
+
+int
+runSolve(const Arguments& a)
+{
+    const std::string in = a.positional()[0], out = a.positional()[1];
+    const SceneOptions sceneOpts = sceneOptions(a);
+    RadiosityOptions o;
+    o.directions = a.getInt("directions");
+    o.maxIterations = a.getInt("iterations");
+    o.tolerance = a.getFloat("tolerance");
+    o.occlusionDepth = float(a.getFloat("occlusion-depth"));
+    const std::string method = a.getString("method");
+    if (method == "sweep") o.visibility = Visibility::Sweep;
+    else if (method == "raycast") o.visibility = Visibility::RayCast;
+    MonteCarloOptions mc;
+    mc.samples = a.getInt("samples");
+    mc.maxIterations = o.maxIterations;
+    mc.tolerance = o.tolerance;
+    const int gather = a.getInt("gather");
+    if (gather > 0 && method != "montecarlo") {
+        throw UsageError("--gather applies only to --method montecarlo");
+    }
+    o.update = choice<UpdateScheme>(a, "update", {{"jacobi", UpdateScheme::Jacobi},
+        {"inplace", UpdateScheme::InPlace}, {"progressive", UpdateScheme::Progressive}});
+    o.accelerate = accelerationFromString(a.getString("accelerate"));
+    o.andersonDepth = a.getInt("anderson-depth");
+    if (o.accelerate != Acceleration::None) {
+        if (o.update == UpdateScheme::Progressive) {
+            throw UsageError("--accelerate needs --update jacobi or inplace, not progressive");
+        }
+        if (method == "montecarlo") {
+            throw UsageError("--accelerate does not apply to --method montecarlo");
+        }
+    }
+    o.lines = choice<LineType>(a, "lines",
+        {{"naive", LineType::Naive}, {"standard", LineType::Standard}});
+    o.precision = precisionFromString(a.getString("precision"));
+    if (method == "montecarlo" && o.precision != Precision::Auto) {
+        throw UsageError("--precision does not apply to --method montecarlo");
+    }
+    const double cache = visibilityCacheOption(a);
+    if (a.has("visibility-cache") && method != "sweep") {
+        throw UsageError("--visibility-cache applies only to --method sweep");
+    }
+    if (method == "montecarlo" && (a.has("checkpoint") || a.has("resume"))) {
+        throw UsageError("--checkpoint and --resume do not apply to --method montecarlo");
+    }
+    SolveSession session(a, in, out);
+    const VdbFile& file = session.file();
+    const std::string& label = session.label();
+    ProgressInterrupter& progress = session.progress();
+    const Scene scene = forFile(label, [&] {
+        return buildScene(file.grids, sceneOpts, &progress);
+    });
+    if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+    if (method == "montecarlo") {
+        mc.gather = gather;
+        session.finish(solveMonteCarlo(scene, mc, &progress, session.control("")), out,
+            mc.maxIterations);
+        return 0;
+    }
+    const double held = residentBytes(double(fileBytes(file) + scene.memUsage()));
+    // Auto: half of what the limit leaves once the solve has what it needs without a cache.
+    o.visibilityCache = cache >= 0.0 ? size_t(std::min(cache, 1e18))
+        : RadiositySolver::visibilityCacheFor(scene, o, workerThreads(), memoryLimit(a) - held);
+    const std::string memory = checkMemory(a, label, held,
+        double(RadiositySolver::memoryEstimate(scene, o, workerThreads())));
+    session.finish({solveRadiosity(scene, o, &progress, session.control(memory))}, out,
+        o.maxIterations);
+    return 0;
+}
+
+} // namespace cli
+} // namespace vdbrad

@@ -1,0 +1,86 @@
+// `vdbrad solve-cloud`: the light in a fog volume lit by the sun (CloudTransfer).
+#include "Commands.h"
+#include "Progress.h"
+#include "SolveSupport.h"
+#include "ToolSupport.h"
+
+#include "vdbrad/CloudTransfer.h"
+#include "vdbrad/vdbrad.h"
+
+#include <cstdlib>
+#include <iostream>
+
+namespace vdbrad {
+namespace cli {
+
+int
+runSolveCloud(const Arguments& a)
+{
+    const std::string in = a.positional()[0], out = a.positional()[1];
+    CloudOptions cloudOpts;
+    cloudOpts.extinctionScale = float(a.getFloat("extinction-scale"));
+    cloudOpts.defaultAlbedo = float(a.getFloat("albedo"));
+    CloudTransferOptions o;
+    const std::vector<double> sun = numberList(a, "sun", 2, "zenith,azimuth in degrees");
+    o.sunZenith = sun[0];
+    o.sunAzimuth = sun[1];
+    if (!(o.sunZenith >= 0.0 && o.sunZenith <= 89.9)) {
+        throw UsageError("--sun: the zenith angle must be in [0, 89.9] degrees");
+    }
+    o.up = choice<int>(a, "up", {{"x", 0}, {"y", 1}, {"z", 2}});
+    o.periodic = a.flag("periodic");
+    {
+        const std::string period = a.getString("min-period");
+        if (period != "auto") {
+            char* end = nullptr;
+            const long v = std::strtol(period.c_str(), &end, 10);
+            if (period.empty() || *end != '\0' || v < 0 || v > 4096) {
+                throw UsageError("--min-period must be auto or a voxel count in [0, 4096], got '"
+                    + period + "'");
+            }
+            o.minPeriod = int(v);
+        }
+        if (a.has("min-period") && !o.periodic) {
+            throw UsageError("--min-period applies to --periodic boxes only");
+        }
+    }
+    o.directions = a.getInt("directions");
+    o.maxIterations = a.getInt("iterations");
+    o.tolerance = a.getFloat("tolerance");
+    o.irradiance = a.getFloat("irradiance");
+    const std::string name = a.getString("output-name");
+    if (name.empty()) throw UsageError("--output-name must not be empty");
+    if (a.has("legendre")) {
+        if (a.has("g")) throw UsageError("give --g or --legendre, not both");
+        const std::vector<double> chi = numberList(a, "legendre", 0, "chi_0 = 1, chi_1, ...");
+        try {
+            o.phase = PhaseFunction::legendre(chi);
+        } catch (const std::exception& e) {
+            throw UsageError("--legendre: " + errorMessage(e));
+        }
+    } else {
+        o.phase = PhaseFunction::henyeyGreenstein(a.getFloat("g"));
+    }
+    o.phaseOrder = a.getInt("phase-order");
+    o.accelerate = accelerationFromString(a.getString("accelerate"));
+    o.andersonDepth = a.getInt("anderson-depth");
+    SolveSession session(a, in, out);
+    const VdbFile& file = session.file();
+    const std::string& label = session.label();
+    ProgressInterrupter& progress = session.progress();
+    const Cloud cloud = forFile(label, [&] {
+        return buildCloud(file.grids, cloudOpts, &progress);
+    });
+    const std::string memory = checkMemory(a, label,
+        residentBytes(double(fileBytes(file) + cloud.memUsage())),
+        double(CloudTransfer::memoryEstimate(cloud, o, workerThreads())));
+    const openvdb::GridBase::Ptr intensity = forFile(label, [&] {
+        return solveCloud(cloud, o, &progress, session.control(memory));
+    });
+    intensity->setName(name);
+    session.finish({intensity}, out, o.maxIterations);
+    return 0;
+}
+
+} // namespace cli
+} // namespace vdbrad

@@ -1,0 +1,136 @@
+#include "ToolSupport.h"
+
+#include "vdbrad/Version.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <sstream>
+#include <sys/stat.h>
+#include <unistd.h>
+
+namespace vdbrad {
+namespace cli {
+
+bool isStdin(const std::string& p) { return p == "-" || p == "stdin.vdb"; }
+bool isStdout(const std::string& p) { return p == "-" || p == "stdout.vdb"; }
+std::string inputLabel(const std::string& p) { return isStdin(p) ? "<stdin>" : p; }
+std::string outputLabel(const std::string& p) { return isStdout(p) ? "<stdout>" : p; }
+
+void
+checkOutput(const std::string& out, const std::vector<std::string>& inputs, bool overwrite)
+{
+    if (isStdout(out)) {
+        if (::isatty(STDOUT_FILENO) == 1) {
+            throw UsageError("refusing to write VDB data to a terminal; redirect standard output "
+                "or give a file name");
+        }
+        return;
+    }
+    struct stat so;
+    if (::stat(out.c_str(), &so) == 0) {
+        if (S_ISDIR(so.st_mode)) throw UserError(out + ": is a directory");
+        for (const auto& in : inputs) {
+            struct stat si;
+            if (!isStdin(in) && ::stat(in.c_str(), &si) == 0 && si.st_dev == so.st_dev
+                && si.st_ino == so.st_ino && !overwrite) {
+                throw UsageError("output '" + out + "' is the input file; pass --overwrite to "
+                    "replace it");
+            }
+        }
+    }
+    const size_t slash = out.find_last_of('/');
+    const std::string dir = slash == std::string::npos ? "." : out.substr(0, slash + 1);
+    struct stat sd;
+    if (::stat(dir.c_str(), &sd) != 0 || !S_ISDIR(sd.st_mode)) {
+        throw UserError(out + ": folder '" + dir + "' does not exist");
+    }
+}
+
+VdbFile
+readInput(const std::string& path)
+{
+    try {
+        if (isStdin(path)) {
+            if (::isatty(STDIN_FILENO) == 1) {
+                throw UsageError("refusing to read VDB data from a terminal; pipe a file in");
+            }
+            return readVdbStream(std::cin);
+        }
+        return readVdbFile(path);
+    } catch (const UsageError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw UserError(inputLabel(path) + ": " + errorMessage(e));
+    }
+}
+
+void
+writeBytes(const std::string& bytes, const std::string& path)
+{
+    if (isStdout(path)) {
+        // One write of complete bytes: a failure before this point leaves stdout empty.
+        if (std::fwrite(bytes.data(), 1, bytes.size(), stdout) != bytes.size()
+            || std::fflush(stdout) != 0) {
+            throw UserError("<stdout>: write failed");
+        }
+        return;
+    }
+    forFile(path, [&] { writeFileAtomic(path, bytes); });
+}
+
+void
+setCreator(VdbFile& file)
+{
+    file.metadata->insertMeta("creator", openvdb::StringMetadata(
+        std::string("vdbrad ") + VDBRAD_VERSION_STRING));
+}
+
+void
+writeOutput(const VdbFile& file, const std::string& path)
+{
+    writeBytes(forFile(outputLabel(path), [&] { return serializeVdb(file); }), path);
+}
+
+void
+warn(const std::string& label, const std::string& what)
+{
+    std::cerr << "vdbrad: warning: " << label << ": " << what << "\n";
+}
+
+std::vector<double>
+numberList(const Arguments& a, const char* option, size_t count, const char* shape)
+{
+    const std::string text = a.getString(option);
+    std::vector<double> values;
+    std::istringstream is(text);
+    for (std::string item; std::getline(is, item, ',');) {
+        char* end = nullptr;
+        const double v = std::strtod(item.c_str(), &end);
+        if (item.empty() || *end != '\0' || !std::isfinite(v)) {
+            throw UsageError("--" + std::string(option) + ": '" + item
+                + "' is not a number (expected " + shape + ")");
+        }
+        values.push_back(v);
+    }
+    if (count == 0 ? values.empty() : values.size() != count) {
+        throw UsageError("--" + std::string(option) + " needs "
+            + (count ? std::to_string(count) + " " : "") + "comma-separated numbers (" + shape
+            + "), got '" + text + "'");
+    }
+    return values;
+}
+
+SceneOptions
+sceneOptions(const Arguments& a)
+{
+    SceneOptions o;
+    o.surface = a.getString("surface");
+    o.defaultAlbedo = float(a.getFloat("albedo"));
+    o.separation = a.getInt("separation");
+    return o;
+}
+
+} // namespace cli
+} // namespace vdbrad

@@ -1,0 +1,93 @@
+// ToolSupport: what several commands of the tool share: standard streams and files, error
+// labels, number formats and the options every scene command reads.
+#pragma once
+
+#include "CommandLine.h"
+
+#include "vdbrad/Errors.h"
+#include "vdbrad/GridIO.h"
+#include "vdbrad/Scene.h"
+#include "vdbrad/TextFormat.h"
+
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace vdbrad {
+namespace cli {
+
+// ---- standard streams and files ----------------------------------------------------------------
+
+/// "-" and vdb_tool's "stdin.vdb" / "stdout.vdb" name the standard streams.
+bool isStdin(const std::string& path);
+bool isStdout(const std::string& path);
+/// The name an error gives the file: "<stdin>", "<stdout>" or the path.
+std::string inputLabel(const std::string& path);
+std::string outputLabel(const std::string& path);
+
+/// @brief Checks on an output made before any heavy work, so a bad command line fails in
+/// milliseconds: no binary to a terminal, no missing folder, no input overwritten unless
+/// @a overwrite.
+void checkOutput(const std::string& out, const std::vector<std::string>& inputs, bool overwrite);
+
+/// Read a .vdb file or standard input; errors name the input.
+VdbFile readInput(const std::string& path);
+
+/// @brief Write @a bytes to the file @a path (atomically) or to standard output, in one piece:
+/// a failure before this leaves no partial output.
+void writeBytes(const std::string& bytes, const std::string& path);
+/// Name this vdbrad and its version as the creator of a file it made from scratch.
+void setCreator(VdbFile& file);
+/// Write @a file as .vdb bytes (see writeBytes).
+void writeOutput(const VdbFile& file, const std::string& path);
+
+/// A warning line on stderr, naming what it is about.
+void warn(const std::string& label, const std::string& what);
+
+/// Runs @a f, turning library errors into one user line naming @a label.
+template<typename F>
+auto
+forFile(const std::string& label, F&& f) -> decltype(f())
+{
+    try {
+        return f();
+    } catch (const Cancelled&) {
+        throw;
+    } catch (const CheckpointError&) {
+        throw;   // names its own file
+    } catch (const UserError&) {
+        throw;
+    } catch (const UsageError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw UserError(label + ": " + errorMessage(e));
+    }
+}
+
+// ---- numbers (withCommas and formatBytes: vdbrad/TextFormat.h) -------------------------------
+
+/// @brief "a,b,c" -> exactly @a count finite numbers (count 0: one or more).
+/// @throw UsageError naming @a option and the expected @a shape
+std::vector<double> numberList(const Arguments& a, const char* option, size_t count,
+    const char* shape);
+
+// ---- options -----------------------------------------------------------------------------------
+
+/// --surface, --albedo and --separation (ranges checked by the option table).
+SceneOptions sceneOptions(const Arguments& a);
+
+/// @brief The value of the choice option @a name, mapped through @a values.
+/// The table has checked the word; a word of its choices missing here is a programming error.
+template<typename T>
+T
+choice(const Arguments& a, const std::string& name, const std::map<std::string, T>& values)
+{
+    const std::string word = a.getString(name);
+    const auto it = values.find(word);
+    if (it == values.end()) throw std::logic_error("--" + name + " " + word + " has no meaning");
+    return it->second;
+}
+
+} // namespace cli
+} // namespace vdbrad

@@ -1,0 +1,349 @@
+// ObjReader: Wavefront OBJ files and their MTL material libraries (Mesh.h: readObj), read as
+// untrusted text (MeshParsing.h).
+#include "vdbrad/Mesh.h"
+#include "vdbrad/MeshParsing.h"
+
+#include <openvdb/Exceptions.h>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <fstream>
+#include <limits>
+#include <sys/stat.h>
+#include <unordered_map>
+
+namespace vdbrad {
+
+namespace {
+
+using openvdb::Vec3f;
+using namespace parsing;   // MeshParsing.h
+
+// ---- OBJ and MTL text --------------------------------------------------------------------------
+
+bool
+equalsNoCase(std::string_view a, std::string_view b)
+{
+    return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+        return std::tolower(static_cast<unsigned char>(x)) ==
+            std::tolower(static_cast<unsigned char>(y));
+    });
+}
+
+bool
+parseInt(std::string_view s, long long& v)
+{
+    if (s.size() > 1 && s[0] == '+' && s[1] != '-') s.remove_prefix(1);
+    const char* end = s.data() + s.size();
+    const auto [ptr, ec] = std::from_chars(s.data(), end, v);
+    return !s.empty() && ec == std::errc() && ptr == end;
+}
+
+/// Lines of OBJ and MTL text: CR stripped, lines ending in a backslash joined to the next.
+class LineReader
+{
+public:
+    LineReader(std::istream& in, const std::string& name): mIn(in), mName(name) {}
+
+    /// False at the end; @a line is the number of the (first physical) line of the text.
+    bool next(std::string& text, size_t& line)
+    {
+        if (!std::getline(mIn, text)) return finish();
+        line = ++mLine;
+        stripCr(text);
+        while (!text.empty() && text.back() == '\\') {
+            text.back() = ' ';
+            if (!std::getline(mIn, mMore)) break;
+            ++mLine;
+            stripCr(mMore);
+            text += mMore;
+        }
+        return true;
+    }
+
+private:
+    static void stripCr(std::string& s)
+    {
+        if (!s.empty() && s.back() == '\r') s.pop_back();
+    }
+    bool finish()
+    {
+        if (mIn.bad()) OPENVDB_THROW(openvdb::IoError, mName << ": read error");
+        return false;
+    }
+
+    std::istream& mIn;
+    const std::string& mName;
+    std::string mMore;
+    size_t mLine = 0;
+};
+
+/// The text after @a keyword (a token of @a line), for names that may contain spaces
+/// ("usemtl Material 1").
+std::string_view
+restOfLine(std::string_view line, std::string_view keyword)
+{
+    return trim(line.substr(size_t(keyword.data() - line.data()) + keyword.size()));
+}
+
+// ---- MTL ---------------------------------------------------------------------------------------
+
+struct MaterialTable
+{
+    std::vector<Material> materials;
+    std::unordered_map<std::string, int32_t> index;
+};
+
+/// Reads `Kd` / `Ke`: one value (grey) or three. Stops at a trailing comment.
+Vec3f
+parseColour(const std::vector<std::string_view>& tokens, const std::string& where)
+{
+    std::vector<double> values;
+    for (size_t i = 1; i < tokens.size() && tokens[i][0] != '#'; ++i) {
+        double v;
+        if (!parseDouble(tokens[i], v)) {
+            // "Kd spectral file.rfl" and "Kd xyz ..." exist in the MTL spec; silently using the
+            // default colour instead would be worse than saying so.
+            OPENVDB_THROW(openvdb::ValueError, where << ": " << tokens[0]
+                << ": expected numbers (r g b), got " << quote(tokens[i]));
+        }
+        values.push_back(v);
+    }
+    if (values.size() != 1 && values.size() != 3) {
+        OPENVDB_THROW(openvdb::ValueError, where << ": " << tokens[0]
+            << " needs 1 (grey) or 3 (r g b) values, got " << values.size());
+    }
+    if (values.size() == 1) values.resize(3, values[0]);
+    Vec3f c;
+    for (int i = 0; i < 3; ++i) {
+        if (!fitsFloat(values[i])) {
+            OPENVDB_THROW(openvdb::ValueError, where << ": " << tokens[0] << " value "
+                << formatNumber(values[i]) << " is not a finite float");
+        }
+        c[i] = float(values[i]);
+    }
+    return c;
+}
+
+/// Appends the materials of one MTL file. A name already defined (here or in an earlier library)
+/// keeps its first definition, so triangles never change colour halfway through a file.
+void
+readMtl(const std::string& path, const std::string& context, MaterialTable& table)
+{
+    std::ifstream in;
+    openFile(in, path, context + ": material library '" + path + "'");
+    LineReader lines(in, path);
+    std::string text;
+    size_t line = 0;
+    std::vector<std::string_view> tokens;
+    int32_t current = -1;
+    bool skipping = false;   // inside a duplicate definition
+    while (lines.next(text, line)) {
+        split(text, tokens);
+        if (tokens.empty() || tokens[0][0] == '#') continue;
+        const std::string_view key = tokens[0];
+        const std::string where = at(path, line);
+        if (equalsNoCase(key, "newmtl")) {
+            const std::string name(restOfLine(text, key));
+            if (name.empty()) {
+                OPENVDB_THROW(openvdb::ValueError, where << ": newmtl without a name");
+            }
+            skipping = table.index.count(name) > 0;
+            if (skipping) continue;
+            current = int32_t(table.materials.size());
+            table.index.emplace(name, current);
+            Material m;
+            m.name = name;
+            // MTL's own default Kd is 0.8, but a material that sets no colour should look like
+            // the rest of an uncoloured vdbrad scene: the tool's default --albedo, 0.5.
+            m.albedo = Vec3f(0.5f);
+            table.materials.push_back(m);
+        } else if (equalsNoCase(key, "Kd") || equalsNoCase(key, "Ke")) {
+            if (current < 0 && !skipping) {
+                OPENVDB_THROW(openvdb::ValueError, where << ": " << key << " before any newmtl");
+            }
+            const Vec3f c = parseColour(tokens, where);
+            const bool diffuse = equalsNoCase(key, "Kd");
+            for (int i = 0; i < 3; ++i) {
+                if (diffuse ? (c[i] < 0.f || c[i] > 1.f) : c[i] < 0.f) {
+                    OPENVDB_THROW(openvdb::ValueError, where << ": " << key << " value "
+                        << formatNumber(c[i]) << (diffuse ? " outside [0, 1]" : " is negative"));
+                }
+            }
+            if (skipping) continue;
+            Material& m = table.materials[current];
+            (diffuse ? m.albedo : m.emission) = c;
+        }
+        // Everything else (Ka, Ks, Ns, d, illum, maps, PBR extensions) does not affect diffuse
+        // radiosity.
+    }
+}
+
+// ---- OBJ ---------------------------------------------------------------------------------------
+
+std::string
+joinPath(const std::string& folder, std::string name)
+{
+    // Windows exporters write "mtllib .\materials\a.mtl".
+    std::replace(name.begin(), name.end(), '\\', '/');
+    if (!name.empty() && name[0] == '/') return name;
+    return folder + "/" + name;
+}
+
+bool
+isFile(const std::string& path)
+{
+    struct stat st;
+    return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+std::string
+parentFolder(const std::string& path)
+{
+    const size_t slash = path.rfind('/');
+    if (slash == std::string::npos) return ".";
+    return slash == 0 ? "/" : path.substr(0, slash);
+}
+
+} // namespace
+
+
+TriangleMesh
+readObj(std::istream& in, const std::string& name, const std::string& folder)
+{
+    TriangleMesh mesh;
+    MaterialTable table;
+    bool haveLibrary = false;
+    int32_t current = -1;
+
+    // A positive index may name a vertex defined further down (the spec does not forbid it and
+    // some writers emit faces first), so those are checked at the end, in file order.
+    std::vector<std::pair<size_t, long long>> forward;
+
+    LineReader lines(in, name);
+    std::string text;
+    size_t line = 0;
+    std::vector<std::string_view> tokens;
+    std::vector<uint32_t> polygon;
+    while (lines.next(text, line)) {
+        split(text, tokens);
+        if (tokens.empty() || tokens[0][0] == '#') continue;
+        const std::string_view key = tokens[0];
+        if (key == "v") {
+            Vec3f p;
+            for (int i = 0; i < 3; ++i) {
+                double v;
+                if (size_t(i + 1) >= tokens.size() || tokens[i + 1][0] == '#') {
+                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
+                        << ": vertex needs 3 coordinates, got " << i);
+                }
+                if (!parseDouble(tokens[i + 1], v)) {
+                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
+                        << ": bad vertex coordinate " << quote(tokens[i + 1]));
+                }
+                if (!fitsFloat(v)) {
+                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
+                        << ": vertex coordinate " << formatNumber(v)
+                        << " is not a finite float");
+                }
+                p[i] = float(v);
+            }
+            if (mesh.points.size() >= std::numeric_limits<uint32_t>::max()) {
+                OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": more than 2^32-1 vertices");
+            }
+            mesh.points.push_back(p);   // a fourth (w) value and vertex colours are ignored
+        } else if (key == "f") {
+            polygon.clear();
+            const long long count = static_cast<long long>(mesh.points.size());
+            for (size_t i = 1; i < tokens.size() && tokens[i][0] != '#'; ++i) {
+                // v, v/vt, v//vn, v/vt/vn: only v matters.
+                const std::string_view v = tokens[i].substr(0, tokens[i].find('/'));
+                long long k;
+                if (!parseInt(v, k)) {
+                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
+                        << ": bad face vertex " << quote(tokens[i]));
+                }
+                if (k == 0) {
+                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
+                        << ": face index 0 (OBJ indices start at 1)");
+                }
+                if (k < 0) {
+                    if (-k > count) {
+                        OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": face index " << k
+                            << (count ? " out of range [-" + std::to_string(count) + ", -1]"
+                                      : std::string(" but no vertex is defined yet")));
+                    }
+                    k += count + 1;   // relative: -1 is the last vertex defined so far
+                } else if (k > count) {
+                    if (k > static_cast<long long>(std::numeric_limits<uint32_t>::max())) {
+                        OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": face index " << k
+                            << " out of range");
+                    }
+                    forward.emplace_back(line, k);
+                }
+                polygon.push_back(uint32_t(k - 1));
+            }
+            if (polygon.size() < 3) {
+                OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": face with "
+                    << polygon.size() << " vertices (at least 3 needed)");
+            }
+            // A fan keeps the polygon's winding in every triangle (exact for convex polygons,
+            // which is what exporters write).
+            for (size_t i = 1; i + 1 < polygon.size(); ++i) {
+                mesh.triangles.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
+                mesh.triangleMaterials.push_back(current);
+            }
+        } else if (key == "mtllib") {
+            if (tokens.size() < 2) {
+                OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": mtllib without a file");
+            }
+            if (folder.empty()) continue;
+            // Several names may follow; a single name with spaces in it is taken whole when such
+            // a file exists (Blender writes the file name unquoted).
+            const std::string whole(restOfLine(text, key));
+            std::vector<std::string> names;
+            if (tokens.size() > 2 && isFile(joinPath(folder, whole))) {
+                names.push_back(whole);
+            } else {
+                for (size_t i = 1; i < tokens.size(); ++i) names.emplace_back(tokens[i]);
+            }
+            for (const std::string& lib : names) {
+                readMtl(joinPath(folder, lib), at(name, line), table);
+            }
+            haveLibrary = true;
+        } else if (key == "usemtl") {
+            if (!haveLibrary) continue;   // no library: the scene's default material
+            const std::string material(restOfLine(text, key));
+            const auto found = table.index.find(material);
+            if (found == table.index.end()) {
+                OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": unknown material "
+                    << quote(material) << " (not in the mtllib files)");
+            }
+            current = found->second;
+        }
+        // vt, vn, vp, o, g, s, l, p, and the many statements exporters add: nothing to voxelize.
+    }
+
+    for (const auto& [faceLine, k] : forward) {
+        if (k > static_cast<long long>(mesh.points.size())) {
+            OPENVDB_THROW(openvdb::ValueError, at(name, faceLine) << ": face index " << k
+                << " out of range [1, " << mesh.points.size() << "]");
+        }
+    }
+    if (mesh.triangles.empty()) OPENVDB_THROW(openvdb::ValueError, name << ": no triangles");
+    mesh.materials = std::move(table.materials);
+    if (mesh.materials.empty()) mesh.triangleMaterials.clear();
+    return mesh;
+}
+
+
+TriangleMesh
+readObj(const std::string& path)
+{
+    std::ifstream in;
+    openFile(in, path, path);
+    return readObj(in, path, parentFolder(path));
+}
+
+} // namespace vdbrad

@@ -1,0 +1,62 @@
+// VoxelStep: radiance across one voxel step of a naive digital line (thesis §6.3).
+//
+// A naive line of direction sigma advances one voxel per step along its major axis, so a step
+// is exactly l = |sigma| / max_k |sigma_k| voxels long. Across a voxel of optical depth
+// tau = kappa l with a source S constant over the voxel, dL/ds = kappa (S - L) gives
+//
+//     L_out = S + (L_in - S) e^-tau,      mean over the step: L_bar = S + (L_in - S) f(tau),
+//     f(tau) = (1 - e^-tau) / tau.
+//
+// The mean escape factor of a voxel, M_v = sum over directions and senses of Omega f(tau)
+// (weighted as the sweeps weight them), is the fraction of what it emits that leaves it: the
+// cloud solver's self-scattering elimination divides by 1 - omega0 (1 - M_v).
+#pragma once
+
+#include "vdbrad/DirectionSet.h"
+
+#include <openvdb/openvdb.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <vector>
+
+namespace vdbrad {
+
+// Across a step of optical depth tau: the absorbed fraction 1 - e^-tau and the mean factor
+// (1 - e^-tau) / tau, with one exponential, and without cancellation for thin voxels. The
+// radiance is updated as L += (S - L) (1 - e^-tau) rather than S + (L - S) e^-tau: at tau = 1e-8
+// e^-tau rounds to 1 in float and the latter would lose all the light a thin voxel adds.
+inline void
+stepFactors(float tau, float& absorb, float& mean)
+{
+    if (tau > 1e-3f) {
+        const double e = std::exp(-double(tau));
+        absorb = float(1.0 - e);
+        mean = float((1.0 - e) / double(tau));
+    } else {
+        // Series to tau^3: relative error below 1e-12 here.
+        absorb = tau * (1.f - 0.5f * tau * (1.f - tau / 3.f));
+        mean = 1.f - 0.5f * tau * (1.f - tau / 3.f * (1.f - 0.25f * tau));
+    }
+}
+
+// A naive line of direction sigma advances one voxel per step along its major axis: the step is
+// |sigma| / max_k |sigma_k| voxels long (float: the sweeps' and the self-scattering factors'
+// optical depths must be the same numbers).
+inline float
+stepLength(const openvdb::Coord& sigma)
+{
+    const int major = std::abs(sigma.x()) >= std::abs(sigma.y())
+        ? (std::abs(sigma.x()) >= std::abs(sigma.z()) ? 0 : 2)
+        : (std::abs(sigma.y()) >= std::abs(sigma.z()) ? 1 : 2);
+    return float(sigma.asVec3d().length() / std::abs(sigma[major]));
+}
+
+/// @brief Per voxel of optical depth per voxel length @a kappa, the mean escape factor
+/// sum_d weight[d] f(kappa stepLength(sigma_d)), from the sweeps' own float factors (so that
+/// the elimination matches the sweeps exactly); voxels of equal kappa in a row share one sum
+/// (a homogeneous cloud computes it once per range).
+std::vector<double> meanEscapeFactors(const std::vector<float>& kappa,
+    const DirectionSet& directions, const std::vector<double>& weight);
+
+} // namespace vdbrad
