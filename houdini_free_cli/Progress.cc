@@ -66,7 +66,8 @@ ProgressInterrupter::end(const std::string& result)
 {
     std::lock_guard<std::mutex> lock(gDrawMutex);
     if (mQuiet) return;
-    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count();
+    const double s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count();
     std::fprintf(stderr, "%s%s: %s in %.2f s\n", mTerminal ? "\r\033[K" : "", mName.c_str(),
         result.c_str(), s);
     std::fflush(stderr);

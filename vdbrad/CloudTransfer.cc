@@ -108,7 +108,9 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     if (!std::isfinite(options.sunAzimuth)) {
         OPENVDB_THROW(openvdb::ValueError, "sun azimuth must be finite");
     }
-    if (options.up < 0 || options.up > 2) OPENVDB_THROW(openvdb::ValueError, "up must be 0, 1 or 2");
+    if (options.up < 0 || options.up > 2) {
+        OPENVDB_THROW(openvdb::ValueError, "up must be 0, 1 or 2");
+    }
     if (options.minPeriod < -1) {
         OPENVDB_THROW(openvdb::ValueError, "minimum period must be >= 0 voxels (or -1: auto), got "
             << options.minPeriod);
@@ -421,7 +423,8 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     // (1 - alpha) times the isotropic source), with c_v = omega0 (1 - M_v). In an opaque
     // conservative voxel that local mode decays like c_v ~ 1 - 1 / tau per sweep. Solving the
     // local term exactly,
-    //     I_00' = (swept - c_v I_00) / (1 - c_v) = (rest - (alpha - 1) omega0 M_v I_00) / (1 - c_v),
+    //     I_00' = (swept - c_v I_00) / (1 - c_v)
+    //           = (rest - (alpha - 1) omega0 M_v I_00) / (1 - c_v),
     // has the same fixed point (I_00' = I_00 iff I_00 = swept) and removes that mode; what is
     // left is voxel-to-voxel diffusion, for Anderson. The beam's first scattering stays in rest
     // (a constant: fixed point unchanged), and so does the light a periodic box carries over.
@@ -468,11 +471,14 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         std::copy(gx.begin() + long(n * M), gx.end(), impl.leftFace.begin());
         for (size_t i = 0; i < n; ++i) impl.diffuseJ[i] = float(double(impl.moments[i * M]) * y00);
     }
-    // Light leaving the box, in the order of the sign patterns and their halves.
+    // Light leaving the box, added in a fixed order: pattern by pattern, then its two halves
+    // (the order these double sums had before the groups were numbered as SweepSchedule
+    // numbers them, so that the budget kept its bits).
     double up0 = 0.0, down0 = 0.0;
     for (int p = 0; p < SweepSchedule::kPatterns; ++p) {
         for (int half = 0; half < SweepSchedule::kGroups / SweepSchedule::kPatterns; ++half) {
-            const std::array<double, 2>& e = sw.escaped[size_t(half * SweepSchedule::kPatterns + p)];
+            const size_t g = size_t(half * SweepSchedule::kPatterns + p);
+            const std::array<double, 2>& e = sw.escaped[g];
             down0 += e[0];
             up0 += e[1];
         }

@@ -56,7 +56,12 @@ template<> struct Traits<openvdb::Vec3f>
     using Wide = openvdb::Vec3d;
     using Scalar = float;
 };
-template<> struct Traits<double> { using Acc = double; using Wide = double; using Scalar = double; };
+template<> struct Traits<double>
+{
+    using Acc = double;
+    using Wide = double;
+    using Scalar = double;
+};
 template<> struct Traits<openvdb::Vec3d>
 {
     using Acc = openvdb::Vec3d;

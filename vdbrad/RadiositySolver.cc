@@ -265,7 +265,9 @@ struct RadiositySolver::Engine
 
         for (int phase = 0; phase < phases; ++phase) {
             // In two phases (in-place), groups 0-3 then 4-7 sweep, B being updated in between.
-            auto inPhase = [&](int g) { return phases == 1 || g / SweepSchedule::kPatterns == phase; };
+            auto inPhase = [&](int g) {
+                return phases == 1 || g / SweepSchedule::kPatterns == phase;
+            };
             // B in each pattern's order, so that the sweeps read it sequentially.
             std::array<std::vector<ValueT>, SweepSchedule::kPatterns> ordered;
             for (size_t p = 0; p < ordered.size(); ++p) {
