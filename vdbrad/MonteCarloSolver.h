@@ -122,8 +122,9 @@ private:
     template<typename ValueT> double iterate(std::vector<ValueT>& B, std::vector<ValueT>& err);
     static size_t raysPerBatch(int rays);
     template<typename ValueT> void gather(const std::vector<ValueT>& B,
-        const std::vector<ValueT>& storedError, const std::vector<size_t>& voxels, size_t perBatch, std::vector<ValueT>& value,
-        std::vector<ValueT>& error, openvdb::util::NullInterrupter* interrupt) const;
+        const std::vector<ValueT>& storedError, const std::vector<size_t>& voxels,
+        size_t perBatch, std::vector<ValueT>& value, std::vector<ValueT>& error,
+        openvdb::util::NullInterrupter* interrupt) const;
 
     const Scene& mScene;
     MonteCarloOptions mOptions;

@@ -13,13 +13,13 @@
 // previous iterate and replaces B at the end; in-place (default) sweeps the directions in two
 // halves and updates B after each, so the second half gathers light the first half just moved
 // (block Gauss-Seidel over directions; fewer iterations, same cost per iteration); progressive
-// shooting sweeps the unshot radiosity and adds what it delivers (one bounce per iteration). The relative
-// residual max|B' - B| / max|B'| over a whole iteration is reported per iteration.
+// shooting sweeps the unshot radiosity and adds what it delivers (one bounce per iteration).
+// The relative residual max|B' - B| / max|B'| over a whole iteration is reported per iteration.
 //
 // Precision: float, or double for albedos near 1 (Precision.h).
 //
-// Threads: directions are dealt to a fixed number of groups (SweepSchedule.h, independent of the thread
-// count); each group sweeps its directions one after the other into its own accumulator, and the
+// Threads: directions are dealt to a fixed number of groups (SweepSchedule.h, independent of the
+// thread count); each group sweeps its directions one after the other into its own accumulator, and the
 // accumulators are added in group order. So the result is bit-identical for any thread count.
 // A grey scene (no RGB input) is solved in floats; an RGB one in Vec3f, with no cost to the other.
 #pragma once
@@ -97,8 +97,8 @@ struct RadiosityOptions
     /// Bytes the solver may keep to remember what each voxel sees along each direction
     /// (VisibilityCache.h, ~1-2 bytes per voxel and direction): a kept direction is swept
     /// once, and later iterations gather along it instead of sweeping it (faster: BENCHMARKS.md,
-    /// "Visibility cache"; the same results, bit for bit). Directions are kept while the budget lasts. 0, or a single
-    /// iteration: every iteration sweeps every direction.
+    /// "Visibility cache"; the same results, bit for bit). Directions are kept while the
+    /// budget lasts. 0, or a single iteration: every iteration sweeps every direction.
     size_t visibilityCache = 0;
 };
 
