@@ -261,12 +261,13 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
     // what leaves this pass.
     const PeriodicBoundary* periodic = boundary.get();
     std::vector<double> entry, exits;
-    LinePartition part(sigma, LineType::Naive);
+    // The lines' keys, centred on the box: used only to find the side faces they cross.
+    const LinePartition part = periodic ? periodic->partition(sigma)
+                                        : LinePartition(sigma, LineType::Naive);
     if (periodic) {
         entry.assign(leftFace.begin() + long(periodic->slice(d)),
             leftFace.begin() + long(periodic->slice(d) + periodic->sliceSize()));
         exits.assign(periodic->sliceSize(), 0.0);
-        part = periodic->partition(sigma);
     }
     const float beamT[2] = {phase.beam[2 * d], phase.beam[2 * d + 1]};
     const float* yAcc[2] = {&phase.harmonics[2 * d * M], &phase.harmonics[(2 * d + 1) * M]};

@@ -622,7 +622,7 @@ RadiositySolver::describe() const
     std::ostringstream os;
     os << "solving " << withCommas(mScene.size()) << " voxels, " << directions().size()
        << " directions (nearest to " << mOptions.directions << "), "
-       << (mOptions.lines == LineType::Naive ? "naive" : "standard") << " lines"
+       << stats().lines << " lines"
        << (mScene.isRgb() ? ", RGB" : "")
        << (mOptions.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
        << (doublePrecision() ? ", double precision" : "");
