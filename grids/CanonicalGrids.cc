@@ -342,6 +342,55 @@ plates(const BuildParams& in)
     return s.finish(scene, vs, albedo);
 }
 
+/// The lamp's emitting columns lo..hi (both axes): centres within r of the axis x = z = 0.5,
+/// compared in doubled index units (the axis is at doubled index n), so the test is exact.
+void
+lampColumns(const std::string& scene, const Params& p, int& lo, int& hi)
+{
+    const int n = p.res;
+    const double r = p.radius;
+    if (!(r > 0.0)) fail(scene, "radius " + str(r) + " must be > 0");
+    if (r > 0.5) fail(scene, "radius " + str(r) + " does not fit over the unit floor");
+    lo = n;
+    hi = -1;
+    for (int i = 0; i < n; ++i) {
+        if (std::abs(double(2 * i + 1 - n)) <= 2.0 * r * n) {
+            lo = std::min(lo, i);
+            hi = std::max(hi, i);
+        }
+    }
+    if (hi < lo) fail(scene, "radius " + str(r) + " covers no voxel centre at this res");
+}
+
+openvdb::GridPtrVec
+lamp(const BuildParams& in)
+{
+    const std::string scene = "lamp";
+    const Params p = resolve(scene, in, 0.5f, 1.f, 0.05f, 0.25f, 0.f);
+    const int n = p.res;
+    const double vs = 1.0 / n;
+    const int top = receiverLayer(scene, p.height, vs);
+    int lo, hi;
+    lampColumns(scene, p, lo, hi);
+
+    Surface s;
+    FloatGrid::Ptr albedo = FloatGrid::create(0.f);
+    auto albedoAcc = albedo->getAccessor();
+    for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < n; ++k) {
+            s.set(Coord(i, 0, k), Vec3d(0, 1, 0), 0.f);
+            albedoAcc.setValue(Coord(i, 0, k), p.albedo);
+        }
+    }
+    for (int i = lo; i <= hi; ++i) {
+        for (int k = lo; k <= hi; ++k) {
+            s.set(Coord(i, top, k), Vec3d(0, -1, 0), p.emission);
+            albedoAcc.setValue(Coord(i, top, k), 0.f);
+        }
+    }
+    return s.finish(scene, vs, albedo);
+}
+
 // ---- Cornell box -------------------------------------------------------------------------------
 
 /// A vertical prism over a convex quadrilateral footprint (x, z), from y = -infinity up to `top`.
@@ -770,6 +819,7 @@ openvdb::GridPtrVec makeFurnaceBox(const BuildParams& p) { return furnaceBox(p);
 openvdb::GridPtrVec makeFurnaceSphere(const BuildParams& p) { return furnaceSphere(p); }
 openvdb::GridPtrVec makeDisk(const BuildParams& p) { return disk(p); }
 openvdb::GridPtrVec makePlates(const BuildParams& p) { return plates(p); }
+openvdb::GridPtrVec makeLamp(const BuildParams& p) { return lamp(p); }
 openvdb::GridPtrVec makeCornell(const BuildParams& p) { return cornell(p); }
 openvdb::GridPtrVec makeSlab(const BuildParams& p) { return slab(p); }
 openvdb::GridPtrVec makeCumulus(const BuildParams& p) { return cumulus(p); }
@@ -786,6 +836,8 @@ builders()
             "E/2 (1 - (h^2+a^2-r^2)/sqrt((h^2+a^2+r^2)^2 - 4a^2r^2)), 0.5 on axis", makeDisk},
         {"plates", "emitting unit square under an albedo-1 unit square at h=0.5: mean receiver "
             "radiosity E F, F = 0.41525 (parallel squares)", makePlates},
+        {"lamp", "square emitter of half-side r=0.05 facing down at h=0.25 over a unit floor of "
+            "albedo 0.5: floor radiosity rho E F(point -> square), Howell B-3", makeLamp},
         {"cornell", "Cornell box (metres, RGB albedo, ceiling light); no closed-form answer",
             makeCornell},
         {"slab", "homogeneous cloud slab 1 x 0.25 x 1, vertical optical thickness tau = 10, "
@@ -831,6 +883,21 @@ rectangleFactor(double x0, double x1, double z0, double z1, double h)
         return (X / sx * std::atan(Y / sx) + Y / sy * std::atan(X / sy)) / (2.0 * kPi);
     };
     return corner(x1, z1) - corner(x0, z1) - corner(x1, z0) + corner(x0, z0);
+}
+
+double
+lampFloorRadiosity(const BuildParams& in, int i, int k)
+{
+    const std::string scene = "lamp";
+    const Params p = resolve(scene, in, 0.5f, 1.f, 0.05f, 0.25f, 0.f);
+    const int n = p.res;
+    const double vs = 1.0 / n;
+    const double h = receiverLayer(scene, p.height, vs) * vs;
+    int lo, hi;
+    lampColumns(scene, p, lo, hi);
+    // Voxel c spans [c, c + 1) vs in world units (its centre at (c + 1/2) vs).
+    const double x = (i + 0.5) * vs, z = (k + 0.5) * vs, a = lo * vs, b = (hi + 1) * vs;
+    return double(p.albedo) * p.emission * rectangleFactor(a - x, b - x, a - z, b - z, h);
 }
 
 double

@@ -58,6 +58,13 @@ openvdb::GridPtrVec makeDisk(const BuildParams&);
 /// over the upper plate = E * parallelSquaresViewFactor(1, h).
 openvdb::GridPtrVec makePlates(const BuildParams&);
 
+/// @brief A small square lamp over a floor: a unit floor at y = 0 facing +y (albedo rho, default
+/// 0.5, no emission; res x res voxels) and, at height h (default 0.25), a square emitter facing
+/// -y (emission E, default 1, albedo 0): the columns whose centres lie within r (default 0.05)
+/// of the axis x = z = 0.5 in both x and z. Nothing else reflects, so the floor's radiosity is
+/// exactly rho E F(point -> the emitter's cells): lampFloorRadiosity().
+openvdb::GridPtrVec makeLamp(const BuildParams&);
+
 /// @brief The Cornell box (Cornell's measured geometry, in metres; y up, open towards -z): white,
 /// red (left, x = 0.556) and green (right, x = 0) walls, the short and tall blocks and the ceiling
 /// light (0.213..0.343 x 0.227..0.332), emission E (default 1, grey). RGB albedo grid:
@@ -102,6 +109,10 @@ double diskIrradiance(double E, double r, double h, double a);
 /// at distance h, the point being at the origin of the rectangle's plane coordinates (corner sum of
 /// Howell's configuration B-3).
 double rectangleFactor(double x0, double x1, double z0, double z1, double h);
+
+/// Exact radiosity of the lamp scene's floor voxel (i, 0, k): rho E times the B-3 factor from its
+/// centre to the cells the emitter's voxels cover.
+double lampFloorRadiosity(const BuildParams&, int i, int k);
 
 /// View factor between two parallel, aligned, directly opposed squares of side w at distance h
 /// (Howell's configuration C-11).

@@ -63,6 +63,12 @@ runSolve(const Arguments& a)
     o.lines = choice<LineType>(a, "lines",
         {{"naive", LineType::Naive}, {"standard", LineType::Standard}});
     o.precision = precisionFromString(a.getString("precision"));
+    o.direct = choice<DirectMode>(a, "direct", {{"auto", DirectMode::Auto},
+        {"exact", DirectMode::Exact}, {"sweep", DirectMode::Sweep}});
+    o.directSamples = a.getInt("direct-samples");
+    if (method == "montecarlo" && (a.has("direct") || a.has("direct-samples"))) {
+        throw UsageError("--direct and --direct-samples do not apply to --method montecarlo");
+    }
     if (method == "montecarlo" && o.precision != Precision::Auto) {
         throw UsageError("--precision does not apply to --method montecarlo");
     }

@@ -201,6 +201,14 @@ commands()
                     "bytes per voxel and direction), so that iterations after the first replay "
                     "it instead of sweeping (3-4x faster, same result): a size (K, M, G, T), 0 "
                     "for none, or auto: half of what --max-memory leaves"},
+                OptionSpec{"direct", OptionType::String, "auto", "exact",
+                    "light straight from the emitters: exact (integrated over the emitters' "
+                    "surfaces with shadow rays: no stripes; the sweeps carry the reflected light), "
+                    "sweep (through the directions, like every bounce) or auto (exact unless "
+                    "more than half of the surface emits)"}.oneOf({"auto", "exact", "sweep"}),
+                OptionSpec{"direct-samples", OptionType::Int, "16", "64",
+                    "shadow rays per voxel for exact direct light (4x more where they disagree: "
+                    "penumbrae)"}.within(1, 65536),
                 kAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
                 kMaxMemory, kOverwrite, kQuiet}),
             {"vdbrad make cornell - | vdbrad solve - cornell_lit.vdb --directions 1000",

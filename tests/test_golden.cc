@@ -144,6 +144,25 @@ cases()
             return surface(sphere(-1.f), o);
         }});
     }
+    // Direct light through the sweeps: the bits of every solve before exact direct light.
+    all.push_back({"cornell-rgb-inplace-sweep-direct", [=] {
+        RadiosityOptions o = base();
+        o.direct = DirectMode::Sweep;
+        return surface(cornell(), o);
+    }});
+    all.push_back({"cornell-rgb-jacobi-sweep-direct", [=] {
+        RadiosityOptions o = base();
+        o.update = UpdateScheme::Jacobi;
+        o.direct = DirectMode::Sweep;
+        return surface(cornell(), o);
+    }});
+    // Exact direct light with 4 shadow rays per voxel.
+    all.push_back({"cornell-rgb-exact-4", [=] {
+        RadiosityOptions o = base();
+        o.direct = DirectMode::Exact;
+        o.directSamples = 4;
+        return surface(cornell(), o);
+    }});
     // Albedo above 0.999: double precision by default, with and without Anderson.
     all.push_back({"sphere-grey-auto-double", [=] {
         RadiosityOptions o = base();

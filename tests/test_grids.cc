@@ -148,7 +148,7 @@ floodFill(const std::set<Coord>& shell, const Coord& seed, bool& leaked)
 TEST(Builders, ListNamesDocsAndContract)
 {
     const std::vector<std::string> names{
-        "furnace-box", "furnace-sphere", "disk", "plates", "cornell", "slab", "cumulus"};
+        "furnace-box", "furnace-sphere", "disk", "plates", "lamp", "cornell", "slab", "cumulus"};
     const auto& all = vg::builders();
     ASSERT_EQ(all.size(), names.size());
     for (std::size_t b = 0; b < names.size(); ++b) {

@@ -740,6 +740,7 @@ TEST_F(RadiosityTest, FloatSolutionMatchesADoublePrecisionSolveOnTheCornellBox)
     RadiosityOptions o;
     o.directions = 100;
     o.update = UpdateScheme::Jacobi;
+    o.direct = DirectMode::Sweep;   // the reference solves B = E + T B: E through the sweeps
     RadiositySolver probe(dark, o);
     probe.iterate();   // measures the per-voxel hit weights (closed rooms), part of T
     // T by rows: row i holds (j, T_ij) per channel.

@@ -4,6 +4,7 @@
 
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
+#include "vdbrad/SampleHash.h"
 #include "vdbrad/VoxelMarch.h"
 
 #include <tbb/blocked_range.h>
@@ -22,17 +23,6 @@ namespace {
 
 using Accessor = VoxelIndex::Accessor;
 
-uint64_t
-mix(uint64_t z)   // splitmix64's finaliser: a counter-based hash, so no RNG state is shared
-{
-    z += 0x9E3779B97F4A7C15ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
-double unit(uint64_t h) { return double(h >> 11) * 0x1.0p-53; }   // [0, 1)
-
 // What the ray from the centre of voxel @a self along unit @a d hits (see the header).
 uint32_t
 trace(const Scene& scene, Accessor& acc, const openvdb::CoordBBox& box, uint32_t self,
@@ -47,8 +37,7 @@ trace(const Scene& scene, Accessor& acc, const openvdb::CoordBBox& box, uint32_t
             if (uint32_t(index) == self) return true;
             const Vec3d n(scene.normal(size_t(index)));
             const Vec3d c = scene.voxels().coord(size_t(index)).asVec3d();
-            const double s0 = (o + d * tIn - c).dot(n), s1 = (o + d * tOut - c).dot(n);
-            if (std::min(s0, s1) < 0.0) {
+            if (crossesVoxelSurface(o, d, tIn, tOut, c, n)) {
                 hit = d.dot(n) < 0.0 ? uint32_t(index) : MonteCarloSolver::kBack;
                 return false;
             }
@@ -62,7 +51,7 @@ trace(const Scene& scene, Accessor& acc, const openvdb::CoordBBox& box, uint32_t
 struct CosineRays
 {
     CosineRays(const openvdb::Vec3f& normal, uint64_t h, size_t S)
-        : n(normal), h(h), phase(unit(h)), S(double(S))
+        : n(normal), h(h), phase(unitHash(h)), S(double(S))
     {
         const openvdb::Vec3d axis = std::abs(n[0]) < 0.6 ? openvdb::Vec3d(1, 0, 0)
             : openvdb::Vec3d(0, 1, 0);
@@ -71,7 +60,7 @@ struct CosineRays
     }
     openvdb::Vec3d operator()(size_t s) const
     {
-        const double u = (double(s) + unit(mix(h + 2 * s + 1))) / S;
+        const double u = (double(s) + unitHash(mixHash(h + 2 * s + 1))) / S;
         const double v = std::fmod(phase + 0.6180339887498949 * double(s), 1.0);
         const double sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
         const double phi = 6.283185307179586 * v;   // 2 pi v
@@ -115,7 +104,8 @@ MonteCarloSolver::MonteCarloSolver(const Scene& scene, const MonteCarloOptions& 
         if (cancelled) return;
         Accessor acc(scene.voxels().tree());
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            const CosineRays rays(scene.normal(i), mix(options.seed ^ mix(uint64_t(i))), S);
+            const uint64_t h = mixHash(options.seed ^ mixHash(uint64_t(i)));
+            const CosineRays rays(scene.normal(i), h, S);
             for (size_t s = 0; s < S; ++s) {
                 mHits[i * S + s] = trace(scene, acc, box, uint32_t(i), rays(s));
             }
@@ -231,8 +221,8 @@ MonteCarloSolver::gather(const std::vector<ValueT>& B, const std::vector<ValueT>
             double mean[K][3] = {};
             for (int b = 0; b < K; ++b) {
                 // A hash stream of its own, disjoint from the stored rays' (gamma-offset seed).
-                const uint64_t h = mix(mix(mOptions.seed ^ 0x6A09E667F3BCC909ull) ^ mix(uint64_t(i))
-                    ^ mix(uint64_t(b) + 0xB7E151628AED2A6Bull));
+                const uint64_t h = mixHash(mixHash(mOptions.seed ^ 0x6A09E667F3BCC909ull)
+                    ^ mixHash(uint64_t(i)) ^ mixHash(uint64_t(b) + 0xB7E151628AED2A6Bull));
                 const CosineRays rays(mScene.normal(i), h, perBatch);
                 double sum[3] = {};
                 size_t used = 0;

@@ -60,6 +60,20 @@ struct RadiositySolver::Impl
     bool hitsKnown = false;                              // invZ renormalised for closed voxels
     bool gatheredStale = false;                          // B was replaced: next step is Jacobi
     bool wide = false;                                   // the state is double (Precision)
+    // Exact direct light (DirectLight.h): the iterate is then R = B - E and its source is
+    // rho D instead of E; `total` holds E + R in float for grey(), rgb() and grid().
+    // D is computed by the first iterate(), so that a bad checkpoint or an interrupt is met
+    // before the shadow rays; until then R is 0 (B = E), and it starts at rho D unless a
+    // checkpoint or setRadiosity() gave it a value.
+    Emitters emitters;
+    bool exact = false;
+    bool directReady = false;
+    bool startFromSource = false;
+    DirectIrradiance direct;
+    Attribute reflected;                                 // rho D
+    const Attribute* source = nullptr;                   // E, or rho D
+    std::vector<float> totalGrey;
+    std::vector<openvdb::Vec3f> totalRgb;
 
     // The iterate and what the next iteration needs of the last one, in one of the four types.
     template<typename ValueT>
@@ -94,17 +108,26 @@ struct RadiositySolver::Impl
             else f(self.template state<float>());
         }
     }
-    // After a change of a double B: its float rounding.
-    void narrowView()
+    // After a change of B: its float rounding (double state) and, with exact direct light,
+    // E + R.
+    void narrowView(const Attribute& emission)
     {
-        if (!wide) return;
-        auto copy = [](auto& to, const auto& from) {
-            using T = typename std::decay_t<decltype(to)>::value_type;
-            to.resize(from.size());
-            for (size_t i = 0; i < from.size(); ++i) to[i] = T(from[i]);
-        };
-        copy(state<float>().B, state<double>().B);
-        copy(state<openvdb::Vec3f>().B, state<openvdb::Vec3d>().B);
+        if (wide) {
+            auto copy = [](auto& to, const auto& from) {
+                using T = typename std::decay_t<decltype(to)>::value_type;
+                to.resize(from.size());
+                for (size_t i = 0; i < from.size(); ++i) to[i] = T(from[i]);
+            };
+            copy(state<float>().B, state<double>().B);
+            copy(state<openvdb::Vec3f>().B, state<openvdb::Vec3d>().B);
+        }
+        if (!exact) return;
+        const std::vector<float>& g = state<float>().B;
+        const std::vector<openvdb::Vec3f>& c = state<openvdb::Vec3f>().B;
+        totalGrey.resize(g.size());
+        for (size_t i = 0; i < g.size(); ++i) totalGrey[i] = emission.grey(i) + g[i];
+        totalRgb.resize(c.size());
+        for (size_t i = 0; i < c.size(); ++i) totalRgb[i] = emission.rgb(i) + c[i];
     }
 };
 
@@ -139,7 +162,7 @@ struct RadiositySolver::Engine
                 return std::none_of(v, v + size, [](Scalar e) { return e < 0; });
             });
         }
-        impl.narrowView();
+        impl.narrowView(s.mScene.emission());
         return residual;
     }
 
@@ -310,17 +333,19 @@ struct RadiositySolver::Engine
                             U[i] = value<ValueT>(scene.albedo(), i) * incoming;
                             B[i] += U[i];
                         } else {
-                            B[i] = value<ValueT>(scene.emission(), i)
+                            B[i] = value<ValueT>(*impl.source, i)
                                 + value<ValueT>(scene.albedo(), i) * incoming;
                         }
                     }
                 });
         }
 
+        // Relative to the radiosity B, also where the iterate is its reflected part R = B - E.
         double maxChange = 0.0, maxSize = 0.0;
         for (size_t i = 0; i < n; ++i) {
             maxChange = std::max(maxChange, magnitudeOfDiff(B[i], previous[i]));
-            maxSize = std::max(maxSize, magnitude(B[i]));
+            maxSize = std::max(maxSize, magnitude(impl.exact
+                ? ValueT(B[i] + value<ValueT>(scene.emission(), i)) : B[i]));
         }
         return maxSize > 0.0 ? maxChange / maxSize : 0.0;
     }
@@ -344,6 +369,10 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     if (!(options.occlusionDepth > 0.f)) {
         OPENVDB_THROW(openvdb::ValueError, "occlusion depth must be > 0, got "
             << options.occlusionDepth);
+    }
+    if (options.directSamples < 1) {
+        OPENVDB_THROW(openvdb::ValueError, "direct-light samples must be >= 1, got "
+            << options.directSamples);
     }
     DirectionSet directions = DirectionSet::fromCount(options.directions);
     const size_t dirs = directions.size(), n = scene.size();
@@ -377,17 +406,28 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
             options.occlusionDepth, regions));
     }
 
+    // Exact direct light: the sweeps solve R = rho (D + gathered R) for R = B - E.
+    impl.source = &scene.emission();
+    if (options.direct != DirectMode::Sweep && scene.hasEmission()) {
+        impl.emitters = Emitters(scene);
+        impl.exact = usesExactDirect(options.direct, scene, impl.emitters);
+    }
+    if (impl.exact) {
+        impl.source = &impl.reflected;   // 0 until the first iterate() computes D
+        impl.startFromSource = true;
+    }
+
     impl.wide = solvesInDouble(scene.albedo(), options.precision);
     impl.withState(scene.isRgb(), [&](auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using ValueT = typename decltype(st.B)::value_type;
         st.B.resize(n);
-        for (size_t i = 0; i < n; ++i) st.B[i] = value<ValueT>(scene.emission(), i);
+        for (size_t i = 0; i < n; ++i) st.B[i] = value<ValueT>(*impl.source, i);
         st.mixer = mIteration.makeMixer<typename StateT::Scalar>(n * StateT::kWidth);
-        // Nothing has been shot yet: all of E is unshot.
+        // Nothing has been shot yet: all of the source (E, or rho D) is unshot.
         if (options.update == UpdateScheme::Progressive) st.unshot = st.B;
     });
-    impl.narrowView();
+    impl.narrowView(scene.emission());
 }
 
 RadiositySolver::~RadiositySolver() = default;
@@ -396,6 +436,7 @@ double
 RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
 {
     return mIteration.iterate([&] {
+        prepareDirect(interrupt);
         double residual = 0.0;
         mImpl->withState(mScene.isRgb(), [&](auto& st) {
             using ValueT = typename decltype(st.B)::value_type;
@@ -403,6 +444,37 @@ RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
         });
         return residual;
     });
+}
+
+void
+RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
+{
+    Impl& impl = *mImpl;
+    if (!impl.exact || impl.directReady) return;
+    const size_t n = mScene.size();
+    DirectLightOptions d;
+    d.samples = mOptions.directSamples;
+    impl.direct = directIrradiance(mScene, impl.emitters, d,
+        impl.regions.cavities > 0 ? &impl.regions.region : nullptr, interrupt);
+    const std::vector<openvdb::Vec3f>& D = impl.direct.irradiance;
+    if (mScene.isRgb()) {
+        std::vector<openvdb::Vec3f> v(n);
+        for (size_t i = 0; i < n; ++i) v[i] = mScene.albedo().rgb(i) * D[i];
+        impl.reflected = Attribute::fromRgb(std::move(v));
+    } else {
+        std::vector<float> v(n);
+        for (size_t i = 0; i < n; ++i) v[i] = mScene.albedo().grey(i) * D[i][0];
+        impl.reflected = Attribute::fromGrey(std::move(v));
+    }
+    impl.directReady = true;
+    if (!impl.startFromSource) return;
+    impl.startFromSource = false;
+    impl.withState(mScene.isRgb(), [&](auto& st) {
+        using ValueT = typename decltype(st.B)::value_type;
+        for (size_t i = 0; i < n; ++i) st.B[i] = value<ValueT>(impl.reflected, i);
+        if (mOptions.update == UpdateScheme::Progressive) st.unshot = st.B;
+    });
+    impl.narrowView(mScene.emission());
 }
 
 size_t
@@ -448,11 +520,14 @@ RadiositySolver::replaceIterate(const std::vector<ValueT>& b)
         // Only the state of b's kind (grey, RGB) is ever given it (checked by the callers).
         if constexpr (StateT::kWidth * sizeof(float) == sizeof(ValueT)) {
             st.B.assign(b.size(), T());
-            for (size_t i = 0; i < b.size(); ++i) st.B[i] = T(b[i]);
+            for (size_t i = 0; i < b.size(); ++i) {
+                st.B[i] = impl.exact ? T(b[i]) - value<T>(mScene.emission(), i) : T(b[i]);
+            }
         }
         if (st.mixer) st.mixer->restart();
     });
-    impl.narrowView();
+    impl.startFromSource = false;
+    impl.narrowView(mScene.emission());
     impl.gatheredStale = true;
 }
 
@@ -488,6 +563,10 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     // Per thread, a report's sweep workspace (4-byte payload), positions and code.
     if (cache) perVoxel += t * (4 + 4 + 12 + 4 + VisibilityCache::worstBytes(1));
     if (options.update == UpdateScheme::Progressive) perVoxel += c;
+    // Exact direct light: the patch of each voxel, D, rho D and E + R in float.
+    if (options.direct != DirectMode::Sweep && scene.hasEmission()) {
+        perVoxel += 4 + 12 + channels * 4 * 2;
+    }
     if (options.accelerate == Acceleration::Anderson) {
         perVoxel += c;                      // the swept iterate
         perVoxel += wide ? AndersonMixerT<double>::bytes(channels, options.andersonDepth)
@@ -521,6 +600,11 @@ RadiositySolver::fingerprint() const
         int64_t(mOptions.update), int64_t(mOptions.visibility), int64_t(mOptions.accelerate),
         mOptions.andersonDepth, int64_t(directions().size()), int64_t(mImpl->wide)};
     h = hashBytes(options, sizeof options, h);
+    if (mImpl->exact) {
+        // Only an exact-direct solve's state is R rather than B (older fingerprints unchanged).
+        const int64_t direct[2] = {1, mOptions.directSamples};
+        h = hashBytes(direct, sizeof direct, h);
+    }
     return hashBytes(&mOptions.occlusionDepth, sizeof(float), h);
 }
 
@@ -582,19 +666,23 @@ RadiositySolver::restoreState(const SolverState& state)
             get("gathered" + std::to_string(g), st.gathered[g]);
         }
         if (st.B.size() != n) OPENVDB_THROW(openvdb::ValueError, "checkpoint has no B");
+        impl.startFromSource = false;
         if (st.mixer) st.mixer->restore(state, "anderson.");
     });
-    impl.narrowView();
+    impl.narrowView(mScene.emission());
 }
 
 const std::vector<float>& RadiositySolver::grey() const
 {
-    return mImpl->state<float>().B;
+    return mImpl->exact ? mImpl->totalGrey : mImpl->state<float>().B;
 }
 const std::vector<openvdb::Vec3f>& RadiositySolver::rgb() const
 {
-    return mImpl->state<openvdb::Vec3f>().B;
+    return mImpl->exact ? mImpl->totalRgb : mImpl->state<openvdb::Vec3f>().B;
 }
+bool RadiositySolver::exactDirect() const { return mImpl->exact; }
+const Emitters& RadiositySolver::emitters() const { return mImpl->emitters; }
+const DirectIrradiance& RadiositySolver::directLight() const { return mImpl->direct; }
 bool RadiositySolver::doublePrecision() const { return mImpl->wide; }
 
 SolveStats
@@ -626,6 +714,11 @@ RadiositySolver::describe() const
        << (mScene.isRgb() ? ", RGB" : "")
        << (mOptions.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
        << (doublePrecision() ? ", double precision" : "");
+    if (exactDirect()) {
+        os << ", exact direct light from " << withCommas(emitters().voxels())
+           << " emitting voxels (" << emitters().patches().size() << " patches, "
+           << mOptions.directSamples << " shadow rays per voxel)";
+    }
     return os.str();
 }
 
@@ -643,11 +736,19 @@ openvdb::GridBase::Ptr
 solveRadiosity(const Scene& scene, const RadiosityOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control)
 {
-    RadiositySolver solver(scene, options);
     const bool framed = interrupt && !control.beforeIteration;
     if (framed) interrupt->start("solving radiosity");
+    RadiositySolver solver(scene, options);
     iterateSolve(solver, control, interrupt);
     if (framed) interrupt->end();
+    if (control.note && solver.exactDirect()) {
+        const DirectIrradiance& d = solver.directLight();
+        std::ostringstream os;
+        os.precision(3);
+        os << "direct light: " << withCommas(size_t(d.rays)) << " shadow rays, "
+           << withCommas(size_t(d.factors)) << " form factors, " << d.seconds << " s";
+        control.note(os.str());
+    }
     if (control.note && solver.cachedDirections() > 0) {
         control.note("visibility cache: " + std::to_string(solver.cachedDirections()) + " of "
             + std::to_string(solver.directions().size()) + " directions kept ("

@@ -26,6 +26,7 @@
 
 #include "vdbrad/Acceleration.h"
 #include "vdbrad/Checkpoint.h"
+#include "vdbrad/DirectLight.h"
 #include "vdbrad/DirectionSet.h"
 #include "vdbrad/FixedPointIteration.h"
 #include "vdbrad/LinePartition.h"
@@ -100,6 +101,12 @@ struct RadiosityOptions
     /// "Visibility cache"; the same results, bit for bit). Directions are kept while the
     /// budget lasts. 0, or a single iteration: every iteration sweeps every direction.
     size_t visibilityCache = 0;
+    /// Direct light from the emitters: integrated exactly (DirectLight.h; the sweeps then carry
+    /// B - E, the reflected light, and the output adds E back), sent through the sweeps like
+    /// every bounce, or Auto (exact when the emitters are at most half of the surface).
+    DirectMode direct = DirectMode::Auto;
+    /// Shadow rays per voxel for exact direct light (DirectLightOptions::samples), >= 1.
+    int directSamples = 16;
 };
 
 class RadiositySolver : public IterativeSolver
@@ -110,7 +117,9 @@ public:
     /// Kept directions are replayed in blocks of this many voxels (VisibilityCache.h).
     static constexpr uint32_t kReplayBlock = 1024;
 
-    /// @brief Prepare the solve: directions, sweep orders, per-voxel normalisation. B starts at E.
+    /// @brief Prepare the solve: directions, sweep orders, per-voxel normalisation, emitter
+    /// patches. B starts at E. With exact direct light the first iterate() computes it (its
+    /// time counts in stats().seconds) and starts the reflected part at rho D.
     /// @throw openvdb::ValueError for invalid options
     RadiositySolver(const Scene& scene, const RadiosityOptions& options = RadiosityOptions());
     ~RadiositySolver();
@@ -129,6 +138,12 @@ public:
     /// precision (what `vdbrad solve` prints before iterating).
     std::string describe() const;
 
+    /// True if direct light is integrated exactly (RadiosityOptions::direct).
+    bool exactDirect() const;
+    /// The emitters' patches (empty if nothing emits) and the direct light's cost so far.
+    const Emitters& emitters() const;
+    const DirectIrradiance& directLight() const;
+
     /// The current radiosity: grey() for a grey scene, rgb() for an RGB one (Scene::isRgb()).
     /// In double precision, these are B rounded to float.
     const std::vector<float>& grey() const;
@@ -140,8 +155,8 @@ public:
     size_t cachedDirections() const;
     size_t cacheBytes() const;
 
-    /// @brief Make @a b (one value per voxel, in Scene order) the iterate the next iterate()
-    /// sweeps: a restart from a known state. The next step is a Jacobi one and an Anderson
+    /// @brief Make @a b (one value per voxel, in Scene order; B, emission included) the iterate
+    /// the next iterate() sweeps: a restart from a known state. The next step is a Jacobi one and an Anderson
     /// history starts again.
     /// @throw openvdb::ValueError if its size or kind (grey, RGB) does not match the scene, or
     ///        for progressive shooting (whose state is not B alone)
@@ -178,6 +193,7 @@ private:
     struct Impl;
     template<typename ValueT> struct Engine;
     template<typename ValueT> void replaceIterate(const std::vector<ValueT>& b);
+    void prepareDirect(openvdb::util::NullInterrupter* interrupt);
     const Scene& mScene;
     RadiosityOptions mOptions;
     std::unique_ptr<Impl> mImpl;

@@ -92,4 +92,17 @@ marchVoxels(VoxelIndex::Accessor& acc, const openvdb::CoordBBox& box, const open
     }
 }
 
+/// The surface rule of a ray through surface voxels (the Monte Carlo reference, the direct
+/// light's shadow rays): voxel v is the plane through its centre @a c with normal @a n clipped
+/// to its cube, and the ray o + t d, crossing the cube for t in [tIn, tOut], meets it iff it
+/// crosses that plane there or runs behind it (it slipped through a crack between tilted
+/// patches). One that stays in front passes (a flat wall's neighbours, at grazing angles).
+inline bool
+crossesVoxelSurface(const openvdb::Vec3d& o, const openvdb::Vec3d& d, double tIn, double tOut,
+    const openvdb::Vec3d& c, const openvdb::Vec3d& n)
+{
+    const double s0 = (o + d * tIn - c).dot(n), s1 = (o + d * tOut - c).dot(n);
+    return std::min(s0, s1) < 0.0;
+}
+
 } // namespace vdbrad

@@ -1,0 +1,418 @@
+// Exact direct light (DirectLight.h, Emitters.h): form factors against closed forms and brute
+// force, shadows against analytic visibility, no leaks, thread-count independence, and the
+// solver's split of B into E plus swept reflected light.
+#include "CanonicalScene.h"
+
+#include "grids/CanonicalGrids.h"
+#include "vdbrad/DirectLight.h"
+#include "vdbrad/Emitters.h"
+#include "vdbrad/GridContract.h"
+#include "vdbrad/RadiositySolver.h"
+
+#include <gtest/gtest.h>
+#include <openvdb/openvdb.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <tuple>
+#include <vector>
+
+using namespace vdbrad;
+using namespace vdbrad::names;
+using openvdb::Coord;
+using openvdb::Vec3d;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+class DirectTest : public ::testing::Test
+{
+protected:
+    void SetUp() override { openvdb::initialize(); }
+};
+
+// A hand-made surface scene in index units (voxel size 1).
+struct SceneBuilder
+{
+    struct Voxel { Vec3d normal; float albedo, emission; };
+    std::map<std::tuple<int, int, int>, Voxel> voxels;
+
+    void set(const Coord& c, const Vec3d& n, float albedo, float emission)
+    {
+        voxels[{c.x(), c.y(), c.z()}] = {n, albedo, emission};
+    }
+    Scene build() const
+    {
+        auto normal = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+        auto albedo = openvdb::FloatGrid::create(0.f);
+        auto emission = openvdb::FloatGrid::create(0.f);
+        normal->setName(kNormal);
+        albedo->setName(kAlbedo);
+        emission->setName(kEmission);
+        for (const auto& [key, v] : voxels) {
+            const Coord c(std::get<0>(key), std::get<1>(key), std::get<2>(key));
+            normal->tree().setValue(c, openvdb::Vec3s(v.normal.unitSafe()));
+            albedo->tree().setValue(c, v.albedo);
+            emission->tree().setValue(c, v.emission);
+        }
+        return buildScene(openvdb::GridPtrVec{normal, albedo, emission});
+    }
+};
+
+// Brute force: (1 / pi) integral of cos+ cos / r^2 over the parallelogram o + s e1 + t e2,
+// s, t in [0, 1], emitting along @a ne, by an m x m midpoint rule.
+double
+bruteFactor(const Vec3d& p, const Vec3d& n, const Vec3d& o, const Vec3d& e1, const Vec3d& e2,
+    const Vec3d& ne, int m)
+{
+    const double dA = e1.cross(e2).length() / (double(m) * m);
+    double sum = 0.0;
+    for (int a = 0; a < m; ++a) {
+        for (int b = 0; b < m; ++b) {
+            const Vec3d q = o + e1 * ((a + 0.5) / m) + e2 * ((b + 0.5) / m);
+            const Vec3d d = q - p;
+            const double r2 = d.lengthSqr();
+            sum += std::max(0.0, n.dot(d)) * std::max(0.0, -ne.dot(d)) / (r2 * r2) * dA;
+        }
+    }
+    return sum / kPi;
+}
+
+} // namespace
+
+// Lambert's contour formula against Howell's closed form (B-3) and against brute force where
+// the polygon crosses the receiver's horizon (the clipped part), for a convex and a concave
+// (L-shaped) polygon.
+TEST_F(DirectTest, PolygonFormFactorMatchesClosedFormsAndBruteForce)
+{
+    // A 2 x 3 rectangle at height 1.5 over a point offset from its corner, facing it.
+    const Vec3d p(0.3, 0.0, -0.4), up(0, 1, 0);
+    const std::vector<std::vector<Vec3d>> rect{{Vec3d(0, 1.5, 0), Vec3d(2, 1.5, 0),
+        Vec3d(2, 1.5, 3), Vec3d(0, 1.5, 3)}};
+    const double exact = grids::rectangleFactor(-0.3, 1.7, 0.4, 3.4, 1.5);
+    EXPECT_NEAR(polygonFormFactor(p, up, rect), exact, 1e-12 * exact);
+    // Either orientation of the loop gives the same non-negative factor.
+    std::vector<std::vector<Vec3d>> reversed{{rect[0].rbegin(), rect[0].rend()}};
+    EXPECT_NEAR(polygonFormFactor(p, up, reversed), exact, 1e-12 * exact);
+
+    // A tilted receiver whose horizon cuts the rectangle: brute force over the whole
+    // rectangle counts only what is in front (cos+), which is what clipping must give.
+    const Vec3d tilted = Vec3d(1.0, 0.35, 0.2).unitSafe();
+    const Vec3d q(1.1, 0.2, 1.0);
+    const double brute = bruteFactor(q, tilted, Vec3d(0, 1.5, 0), Vec3d(2, 0, 0),
+        Vec3d(0, 0, 3), Vec3d(0, -1, 0), 1500);
+    const double clipped = polygonFormFactor(q, tilted, rect);
+    EXPECT_GT(clipped, 0.02);
+    EXPECT_NEAR(clipped, brute, 2e-4 * brute);
+
+    // An L (concave) straddling the horizon = the sum of its two rectangles.
+    const std::vector<std::vector<Vec3d>> ell{{Vec3d(0, 1.5, 0), Vec3d(2, 1.5, 0),
+        Vec3d(2, 1.5, 1), Vec3d(1, 1.5, 1), Vec3d(1, 1.5, 3), Vec3d(0, 1.5, 3)}};
+    const std::vector<std::vector<Vec3d>> partA{{Vec3d(0, 1.5, 0), Vec3d(2, 1.5, 0),
+        Vec3d(2, 1.5, 1), Vec3d(0, 1.5, 1)}};
+    const std::vector<std::vector<Vec3d>> partB{{Vec3d(0, 1.5, 1), Vec3d(1, 1.5, 1),
+        Vec3d(1, 1.5, 3), Vec3d(0, 1.5, 3)}};
+    const Vec3d cut = Vec3d(-1.0, 0.3, 0.4).unitSafe();
+    const Vec3d at(0.9, 0.4, 1.3);
+    const double sum = polygonFormFactor(at, cut, partA) + polygonFormFactor(at, cut, partB);
+    EXPECT_GT(sum, 0.01);
+    EXPECT_NEAR(polygonFormFactor(at, cut, ell), sum, 1e-12);
+    // Wholly behind the receiver: nothing.
+    EXPECT_EQ(polygonFormFactor(p, -up, rect), 0.0);
+}
+
+// Patches: one per connected, flat, equally emitting set; outlines merged to their corners;
+// holes kept; area per column.
+TEST_F(DirectTest, EmittersGroupIntoPatchesWithMergedOutlines)
+{
+    SceneBuilder b;
+    // A 5 x 5 ring (hole in the middle) facing down at y = 10, emission 2.
+    for (int i = 0; i < 5; ++i) {
+        for (int k = 0; k < 5; ++k) {
+            if (i == 2 && k == 2) continue;
+            b.set(Coord(i, 10, k), Vec3d(0, -1, 0), 0.f, 2.f);
+        }
+    }
+    // An L of 4 voxels elsewhere, emission 1, facing +x.
+    for (const Coord& c : {Coord(20, 0, 0), Coord(20, 1, 0), Coord(20, 2, 0), Coord(20, 0, 1)}) {
+        b.set(c, Vec3d(1, 0, 0), 0.f, 1.f);
+    }
+    // A receiver that does not emit.
+    b.set(Coord(2, 0, 2), Vec3d(0, 1, 0), 0.5f, 0.f);
+    const Scene scene = b.build();
+    const Emitters emitters(scene);
+    ASSERT_EQ(emitters.patches().size(), 2u);
+    EXPECT_EQ(emitters.voxels(), 28u);
+    const EmitterPatch* ring = nullptr;
+    const EmitterPatch* ell = nullptr;
+    for (const EmitterPatch& p : emitters.patches()) (p.exitance[0] == 2.0 ? ring : ell) = &p;
+    ASSERT_TRUE(ring && ell);
+    EXPECT_EQ(ring->loops.size(), 2u);          // outside and hole
+    size_t corners = 0;
+    for (const auto& loop : ring->loops) corners += loop.size();
+    EXPECT_EQ(corners, 8u);                      // 4 + 4 after merging
+    EXPECT_DOUBLE_EQ(ring->area, 24.0);
+    EXPECT_DOUBLE_EQ(ring->offset, -10.0);       // n . q = -10 on y = 10
+    EXPECT_EQ(ell->loops.size(), 1u);
+    EXPECT_EQ(ell->loops[0].size(), 6u);
+    EXPECT_DOUBLE_EQ(ell->area, 4.0);
+    EXPECT_DOUBLE_EQ(emitters.power(), 2.0 * 24 + 4.0);
+    // The receiver under the ring's hole sees the ring: 1 - F(hole) of the whole square... as
+    // the difference of two B-3 rectangles (index units: cells [-0.5, 4.5] and the hole).
+    const double whole = grids::rectangleFactor(-2.5, 2.5, -2.5, 2.5, 10.0);
+    const double hole = grids::rectangleFactor(-0.5, 0.5, -0.5, 0.5, 10.0);
+    EXPECT_NEAR(patchFormFactor(Vec3d(2, 0, 2), Vec3d(0, 1, 0), *ring), whole - hole, 1e-12);
+    for (size_t i = 0; i < scene.size(); ++i) {
+        const bool emitting = scene.emission().grey(i) > 0.f;
+        EXPECT_EQ(emitters.patchOf(i) != Emitters::kNone, emitting);
+    }
+}
+
+// The lamp scene's floor: exact to float rounding at the default settings, for several lamp
+// sizes and heights (the sweeps' own direct light is 10-60 % off here: BENCHMARKS.md).
+TEST_F(DirectTest, LampOverFloorIsExactAtDefaultSettings)
+{
+    struct Case { float r, h; };
+    for (const Case& c : {Case{0.05f, 0.25f}, Case{0.02f, 0.1f}, Case{0.15f, 0.5f},
+             Case{0.1f, 0.05f}}) {
+        grids::BuildParams p;
+        p.res = 64;
+        p.radius = c.r;
+        p.height = c.h;
+        const Scene scene = buildScene(grids::makeLamp(p));
+        RadiositySolver solver(scene, RadiosityOptions());
+        solver.solve();
+        ASSERT_TRUE(solver.exactDirect());
+        double top = 0.0, worst = 0.0;
+        std::vector<double> exact(scene.size(), 0.0);
+        for (size_t i = 0; i < scene.size(); ++i) {
+            const Coord v = scene.voxels().coord(i);
+            if (v.y() != 0) continue;
+            exact[i] = grids::lampFloorRadiosity(p, v.x(), v.z());
+            top = std::max(top, exact[i]);
+        }
+        for (size_t i = 0; i < scene.size(); ++i) {
+            const Coord v = scene.voxels().coord(i);
+            if (v.y() != 0) {
+                EXPECT_EQ(solver.grey()[i], scene.emission().grey(i));   // black lamp: B = E
+                continue;
+            }
+            if (exact[i] < 1e-3 * top) continue;
+            worst = std::max(worst, std::abs(solver.grey()[i] - exact[i]) / exact[i]);
+        }
+        EXPECT_LT(worst, 2e-5) << "r " << c.r << " h " << c.h;
+    }
+}
+
+// A black plate between the lamp and an albedo-1 floor. The repository's ray rule stops a ray
+// in a plate voxel's cube wherever it is behind that voxel's plane (what keeps rays out of the
+// cracks of tilted walls), so from below the plate blocks exactly the rays through the box
+// [cells] x [y - 1/2, y]: the reference integrates over the lamp with that visibility (midpoint
+// rule, 160 x 160). Where the floor sees all of the lamp the answer is exact (B-3); where it
+// sees none, zero; in the penumbra the 16 shadow rays' ratio estimate is within a few per cent.
+TEST_F(DirectTest, ShadowsMatchTheRayRulesVisibility)
+{
+    const int n = 48, lamp = 24, plate = 12;
+    const int lo = 21, hi = 26, b0 = 16, b1 = 20;
+    SceneBuilder b;
+    for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < n; ++k) b.set(Coord(i, 0, k), Vec3d(0, 1, 0), 1.f, 0.f);
+    }
+    for (int i = lo; i <= hi; ++i) {
+        for (int k = lo; k <= hi; ++k) b.set(Coord(i, lamp, k), Vec3d(0, -1, 0), 0.f, 1.f);
+    }
+    for (int i = b0; i <= b1; ++i) {
+        for (int k = b0; k <= b1 + 8; ++k) b.set(Coord(i, plate, k), Vec3d(0, 1, 0), 0.f, 0.f);
+    }
+    const Scene scene = b.build();
+    RadiositySolver solver(scene, RadiosityOptions());
+    solver.solve();
+    ASSERT_TRUE(solver.exactDirect());
+
+    const double a0 = lo - 0.5, a1 = hi + 0.5;                               // lamp cells
+    const double c0 = b0 - 0.5, c1 = b1 + 0.5, d0 = b0 - 0.5, d1 = b1 + 8.5;   // plate cells
+    const double y0 = plate - 0.5, y1 = plate;                                // blocking box
+    // Is the ray from (x, 0, z) to (u, lamp, v) blocked? Where along y it is over the plate in
+    // x, and in z, and between y0 and y1: the three intervals meet.
+    auto blocked = [&](double x, double z, double u, double v) {
+        double lo_ = y0, hi_ = y1;
+        auto clip = [&](double p0, double p1, double e0, double e1) {
+            const double slope = (p1 - p0) / lamp;      // coordinate = p0 + slope y
+            if (slope == 0.0) {
+                if (p0 < e0 || p0 > e1) hi_ = -1.0;
+                return;
+            }
+            double ya = (e0 - p0) / slope, yb = (e1 - p0) / slope;
+            if (ya > yb) std::swap(ya, yb);
+            lo_ = std::max(lo_, ya);
+            hi_ = std::min(hi_, yb);
+        };
+        clip(x, u, c0, c1);
+        clip(z, v, d0, d1);
+        return lo_ <= hi_;
+    };
+    const int m = 160;
+    double sumPen = 0.0;
+    size_t lit = 0, penumbra = 0, umbra = 0;
+    for (size_t i = 0; i < scene.size(); ++i) {
+        const Coord v = scene.voxels().coord(i);
+        if (v.y() != 0) continue;
+        const double x = v.x(), z = v.z();
+        const double full = grids::rectangleFactor(a0 - x, a1 - x, a0 - z, a1 - z, lamp);
+        double seen = 0.0, all = 0.0;
+        size_t hits = 0;
+        for (int p = 0; p < m; ++p) {
+            for (int q = 0; q < m; ++q) {
+                const double u = a0 + (a1 - a0) * (p + 0.5) / m;
+                const double w = a0 + (a1 - a0) * (q + 0.5) / m;
+                const double r2 = (u - x) * (u - x) + (w - z) * (w - z) + double(lamp) * lamp;
+                const double f = 1.0 / (r2 * r2);   // cos cos / r^2, up to a constant
+                all += f;
+                if (!blocked(x, z, u, w)) {
+                    seen += f;
+                    ++hits;
+                }
+            }
+        }
+        const double got = solver.grey()[i];
+        if (hits == size_t(m) * m) {
+            EXPECT_NEAR(got, full, 2e-5 * full) << v;
+            ++lit;
+        } else if (hits == 0) {
+            EXPECT_EQ(got, 0.f) << v;
+            ++umbra;
+        } else {
+            sumPen += std::abs(got - full * seen / all) / full;
+            ++penumbra;
+        }
+    }
+    ASSERT_GT(lit, 1000u);
+    ASSERT_GT(umbra, 10u);
+    ASSERT_GT(penumbra, 50u);
+    // Mean penumbra error, relative to the unshadowed value.
+    EXPECT_LT(sumPen / double(penumbra), 0.03);
+    std::printf("penumbra %zu mean %g\n", penumbra, sumPen / double(penumbra));
+}
+
+// A light outside a closed box lights none of the inside: shadow rays never cross a shell.
+TEST_F(DirectTest, ClosedBoxLeaksNothing)
+{
+    grids::BuildParams p;
+    p.res = 16;
+    p.emission = 0.f;
+    openvdb::GridPtrVec grids = grids::makeFurnaceBox(p);
+    // A lamp over the box's top, facing down, outside it.
+    openvdb::Vec3SGrid::Ptr normal;
+    openvdb::FloatGrid::Ptr emission, albedo;
+    for (auto& g : grids) {
+        if (g->getName() == kNormal) normal = openvdb::gridPtrCast<openvdb::Vec3SGrid>(g);
+        if (g->getName() == kEmission) emission = openvdb::gridPtrCast<openvdb::FloatGrid>(g);
+        if (g->getName() == kAlbedo) albedo = openvdb::gridPtrCast<openvdb::FloatGrid>(g);
+    }
+    ASSERT_TRUE(normal && emission);
+    if (!albedo) {
+        albedo = openvdb::FloatGrid::create(0.5f);
+        albedo->setName(kAlbedo);
+        albedo->setTransform(normal->transform().copy());
+        grids.push_back(albedo);
+    }
+    for (int i = 4; i < 12; ++i) {
+        for (int k = 4; k < 12; ++k) {
+            normal->tree().setValue(Coord(i, 20, k), openvdb::Vec3s(0, -1, 0));
+            emission->tree().setValue(Coord(i, 20, k), 1.f);
+            albedo->tree().setValue(Coord(i, 20, k), 0.f);
+        }
+    }
+    const Scene scene = buildScene(grids);
+    RadiositySolver solver(scene, RadiosityOptions());
+    solver.solve();
+    ASSERT_TRUE(solver.exactDirect());
+    size_t inside = 0, lit = 0;
+    for (size_t i = 0; i < scene.size(); ++i) {
+        const Coord v = scene.voxels().coord(i);
+        if (v.y() == 20) continue;
+        ++inside;
+        EXPECT_EQ(solver.grey()[i], 0.f) << v;
+        // The box's own top face looks down, away from the lamp; the lamp is in front of the
+        // floor's voxels, so without the shadow rays they would be lit.
+        if (patchFormFactor(v.asVec3d(), Vec3d(scene.normal(i)), solver.emitters().patches()[0])
+            > 0.0) {
+            ++lit;
+        }
+    }
+    EXPECT_GT(inside, 1000u);
+    EXPECT_GT(lit, 100u);
+}
+
+// Auto: exact for a small light, sweeps for a furnace (every voxel emits), whose answer stays
+// E / (1 - rho) to rounding.
+TEST_F(DirectTest, AutoKeepsFurnacesExact)
+{
+    const Scene furnace = test::canonicalScene("furnace-box", 12);
+    RadiositySolver solver(furnace, RadiosityOptions());
+    solver.solve();
+    EXPECT_FALSE(solver.exactDirect());
+    for (float b : solver.grey()) EXPECT_NEAR(b, 2.f, 1e-4f);
+    const Scene cornell = test::canonicalScene("cornell", 16);
+    RadiositySolver lit(cornell, RadiosityOptions());
+    EXPECT_TRUE(lit.exactDirect());
+    RadiosityOptions sweep;
+    sweep.direct = DirectMode::Sweep;
+    EXPECT_FALSE(RadiositySolver(cornell, sweep).exactDirect());
+}
+
+// Bit-identical for any thread count; all update schemes reach the same answer; a restart from
+// B (emission included) continues where it was.
+TEST_F(DirectTest, ThreadsSchemesAndRestartsAgree)
+{
+    const Scene scene = test::canonicalScene("cornell", 24);
+    RadiosityOptions o;
+    o.directions = 200;
+    o.tolerance = 1e-6;
+    std::vector<openvdb::Vec3f> one, two;
+    {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+        RadiositySolver s(scene, o);
+        s.solve();
+        one = s.rgb();
+    }
+    {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+        RadiositySolver s(scene, o);
+        s.solve();
+        two = s.rgb();
+    }
+    ASSERT_EQ(one.size(), two.size());
+    EXPECT_EQ(0, std::memcmp(one.data(), two.data(), one.size() * sizeof(openvdb::Vec3f)));
+
+    for (UpdateScheme u : {UpdateScheme::Jacobi, UpdateScheme::Progressive}) {
+        RadiosityOptions other = o;
+        other.update = u;
+        other.maxIterations = 400;
+        RadiositySolver s(scene, other);
+        s.solve();
+        double worst = 0.0, top = 0.0;
+        for (size_t i = 0; i < one.size(); ++i) {
+            for (int c = 0; c < 3; ++c) {
+                worst = std::max(worst, double(std::abs(s.rgb()[i][c] - one[i][c])));
+                top = std::max(top, double(one[i][c]));
+            }
+        }
+        EXPECT_LT(worst, 1e-4 * top) << int(u);
+    }
+
+    // Restart from the converged B: one more iteration changes (almost) nothing.
+    RadiositySolver again(scene, o);
+    again.setRadiosity(one);
+    const double residual = again.iterate();
+    EXPECT_LT(residual, 1e-5);
+    double worst = 0.0;
+    for (size_t i = 0; i < one.size(); ++i) {
+        worst = std::max(worst, double((again.rgb()[i] - one[i]).length()));
+    }
+    EXPECT_LT(worst, 1e-5);
+}

@@ -1,0 +1,290 @@
+#include "vdbrad/DirectLight.h"
+
+#include "vdbrad/Errors.h"
+#include "vdbrad/SampleHash.h"
+#include "vdbrad/VoxelMarch.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+
+namespace vdbrad {
+
+namespace {
+
+using openvdb::Vec3d;
+constexpr double kPi = 3.14159265358979323846;
+// A patch farther than this many of its radii is a point source: for a disk seen head-on the
+// point value a^2 / h^2 overestimates a^2 / (h^2 + a^2) by (a / h)^2, here 1e-3.
+constexpr double kFarRadii = 32.0;
+// Where a voxel's first rays disagree, it is cast this many times as many (BENCHMARKS.md).
+constexpr size_t kPenumbra = 4;
+// A receiver this close to a patch's plane (voxels) is on it: it sees none of it.
+constexpr double kOnPlane = 1e-9;
+
+// Lambert's contour sum of one closed loop (signed; its orientation gives the sign).
+double
+contour(const Vec3d& p, const Vec3d& n, const Vec3d* v, size_t m)
+{
+    double sum = 0.0;
+    for (size_t i = 0; i < m; ++i) {
+        const Vec3d a = v[i] - p, b = v[i + 1 == m ? 0 : i + 1] - p;
+        const Vec3d c = a.cross(b);
+        const double length = c.length();
+        if (!(length > 0.0)) continue;   // the edge points at p: it subtends nothing
+        sum += std::atan2(length, a.dot(b)) * n.dot(c) / length;
+    }
+    return sum;
+}
+
+struct Scratch
+{
+    std::vector<Vec3d> clipped;
+    std::vector<double> weight;       // per patch: M_g F(x, g) as a channel mean
+    std::vector<double> factor;       // per patch: F(x, g)
+    std::vector<uint32_t> front;      // patches with weight > 0
+    std::vector<double> shares;       // per front patch: its seen share
+};
+
+// Does the ray from voxel @a self's centre @a p to @a y on patch @a g arrive?
+bool
+arrives(const Scene& scene, const Emitters& emitters, VoxelIndex::Accessor& acc,
+    const openvdb::CoordBBox& box, uint32_t self, const Vec3d& p, const Vec3d& y, int32_t g)
+{
+    const Vec3d d = y - p;
+    bool arrived = true;
+    marchVoxels(acc, box, p + Vec3d(0.5), d, 0.0, 1.0, [&](int32_t index, double tIn,
+            double tOut) {
+        if (uint32_t(index) == self) return true;
+        if (emitters.patchOf(size_t(index)) == g) return false;   // reached the patch
+        const Vec3d c = scene.voxels().coord(size_t(index)).asVec3d();
+        if (crossesVoxelSurface(p, d, tIn, tOut, c, Vec3d(scene.normal(size_t(index))))) {
+            arrived = false;
+            return false;
+        }
+        return true;
+    });
+    return arrived;
+}
+
+} // namespace
+
+bool
+usesExactDirect(DirectMode mode, const Scene& scene, const Emitters& emitters)
+{
+    if (emitters.empty()) return false;
+    switch (mode) {
+        case DirectMode::Sweep: return false;
+        case DirectMode::Exact: return true;
+        case DirectMode::Auto: break;
+    }
+    return emitters.voxels() * 2 <= scene.size();
+}
+
+double
+polygonFormFactor(const Vec3d& p, const Vec3d& n,
+    const std::vector<std::vector<Vec3d>>& loops)
+{
+    double sum = 0.0;
+    std::vector<Vec3d> clipped;
+    for (const std::vector<Vec3d>& loop : loops) {
+        const size_t m = loop.size();
+        bool front = false, back = false;
+        for (const Vec3d& v : loop) {
+            const double s = n.dot(v - p);
+            front |= s > 0.0;
+            back |= s < 0.0;
+        }
+        if (!front) continue;
+        if (!back) {
+            sum += contour(p, n, loop.data(), m);
+            continue;
+        }
+        // Sutherland-Hodgman against x's tangent plane. A concave loop may come out as pieces
+        // joined by back-and-forth runs along the plane; those cancel in the contour sum.
+        clipped.clear();
+        for (size_t i = 0; i < m; ++i) {
+            const Vec3d& a = loop[i];
+            const Vec3d& b = loop[i + 1 == m ? 0 : i + 1];
+            const double sa = n.dot(a - p), sb = n.dot(b - p);
+            if (sa >= 0.0) clipped.push_back(a);
+            if ((sa >= 0.0) != (sb >= 0.0)) clipped.push_back(a + (b - a) * (sa / (sa - sb)));
+        }
+        if (clipped.size() >= 3) sum += contour(p, n, clipped.data(), clipped.size());
+    }
+    return std::abs(sum) / (2.0 * kPi);
+}
+
+double
+patchFormFactor(const Vec3d& p, const Vec3d& n, const EmitterPatch& patch)
+{
+    const double height = patch.normal.dot(p) - patch.offset;
+    if (!(height > kOnPlane)) return 0.0;
+    const Vec3d toCentre = patch.centre - p;
+    const double r2 = toCentre.lengthSqr();
+    if (r2 > kFarRadii * kFarRadii * patch.radius * patch.radius) {
+        const double cosX = n.dot(toCentre), cosG = -patch.normal.dot(toCentre);
+        if (cosX <= 0.0 || cosG <= 0.0) return 0.0;
+        return patch.area * cosX * cosG / (kPi * r2 * r2);
+    }
+    return polygonFormFactor(p, n, patch.loops);
+}
+
+DirectIrradiance
+directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLightOptions& options,
+    const std::vector<uint32_t>* regions, openvdb::util::NullInterrupter* interrupt)
+{
+    if (options.samples < 1) {
+        OPENVDB_THROW(openvdb::ValueError, "direct-light samples must be >= 1, got "
+            << options.samples);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const size_t n = scene.size(), S = size_t(options.samples);
+    const std::vector<EmitterPatch>& patches = emitters.patches();
+    DirectIrradiance out;
+    out.irradiance.assign(n, openvdb::Vec3f(0.f));
+    if (patches.empty()) return out;
+    const openvdb::CoordBBox box = scene.voxels().bbox();
+    // The room each patch faces: that of its first voxel (a flat patch faces one room).
+    std::vector<uint32_t> patchRegion(patches.size(), 0);
+    if (regions) {
+        std::vector<char> known(patches.size(), 0);
+        for (size_t i = 0; i < n; ++i) {
+            const int32_t g = emitters.patchOf(i);
+            if (g == Emitters::kNone || known[size_t(g)]) continue;
+            known[size_t(g)] = 1;
+            patchRegion[size_t(g)] = (*regions)[i];
+        }
+    }
+    tbb::enumerable_thread_specific<Scratch> scratch;
+    std::atomic<uint64_t> rays{0}, factors{0};
+    std::atomic<size_t> done{0};
+    std::atomic<bool> cancelled{false};
+
+    using Range = tbb::blocked_range<size_t>;
+    tbb::parallel_for(Range(0, n, 64), [&](const Range& r) {
+        if (cancelled) return;
+        Scratch& s = scratch.local();
+        s.weight.resize(patches.size());
+        s.factor.resize(patches.size());
+        VoxelIndex::Accessor acc(scene.voxels().tree());
+        uint64_t myRays = 0, myFactors = 0;
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const Vec3d p = scene.voxels().coord(i).asVec3d();
+            const Vec3d nx(scene.normal(i));
+            const int32_t own = emitters.patchOf(i);
+            s.front.clear();
+            double total = 0.0;
+            const uint32_t room = regions ? (*regions)[i] : 0;
+            for (size_t g = 0; g < patches.size(); ++g) {
+                if (int32_t(g) == own || patchRegion[g] != room) continue;
+                const double f = patchFormFactor(p, nx, patches[g]);
+                ++myFactors;
+                if (!(f > 0.0)) continue;
+                const Vec3d& m = patches[g].exitance;
+                const double w = f * (m[0] + m[1] + m[2]) / 3.0;
+                if (!(w > 0.0)) continue;
+                s.factor[g] = f;
+                s.weight[g] = w;
+                total += w;
+                s.front.push_back(uint32_t(g));
+            }
+            if (!(total > 0.0)) continue;
+
+            // Stratified points on the patches, in proportion to their weights: sample j at
+            // u = (j + xi) / count along the patches' cumulative weight, so consecutive samples
+            // stay on one patch and each patch's visible share is a ratio of its own samples.
+            // Within a patch, the k-th point is the k-th of an R2 sequence (Roberts' additive
+            // recurrence, well spread for any k) over its columns' bounding rectangle, shifted
+            // per voxel; a point off the patch weighs nothing. @a mixed: some ray arrived and
+            // some did not (a penumbra).
+            const uint64_t h = mixHash(options.seed ^ mixHash(uint64_t(i)));
+            const double shiftU = unitHash(mixHash(h + 1)), shiftV = unitHash(mixHash(h + 2));
+            auto estimate = [&](size_t count, bool& mixed) {
+                double allA = 0.0, allAV = 0.0;
+                size_t at = 0, k = 0;
+                double below = 0.0;         // cumulative weight before patch front[at]
+                double a = 0.0, av = 0.0;   // patch front[at]: sample weights, those seen
+                bool anySeen = false, anyHidden = false;
+                // Per front patch, its seen share of the integrand; -1: no sample weighs
+                // anything there (none reached it, or all fell off it or behind x).
+                std::vector<double>& shares = s.shares;
+                shares.assign(s.front.size(), -1.0);
+                for (size_t j = 0; j < count; ++j) {
+                    const double u = (double(j) + unitHash(mixHash(h + 3 * j + 3)))
+                        / double(count) * total;
+                    while (at + 1 < s.front.size() && u >= below + s.weight[s.front[at]]) {
+                        if (a > 0.0) shares[at] = av / a;
+                        below += s.weight[s.front[at]];
+                        ++at;
+                        k = 0;
+                        a = av = 0.0;
+                    }
+                    const int32_t g = int32_t(s.front[at]);
+                    const EmitterPatch& patch = patches[size_t(g)];
+                    const double su = std::fmod(shiftU + 0.7548776662466927 * double(k), 1.0);
+                    const double sv = std::fmod(shiftV + 0.5698402909980532 * double(k), 1.0);
+                    ++k;
+                    const double pu = double(patch.lower[0]) - 0.5
+                        + su * double(patch.upper[0] - patch.lower[0] + 1);
+                    const double pv = double(patch.lower[1]) - 0.5
+                        + sv * double(patch.upper[1] - patch.lower[1] + 1);
+                    if (!patch.covers(pu, pv)) continue;
+                    const Vec3d y = patch.lift(pu, pv);
+                    const Vec3d d = y - p;
+                    const double r2 = d.lengthSqr();
+                    const double cosCos =
+                        std::max(0.0, nx.dot(d)) * std::max(0.0, -patch.normal.dot(d));
+                    // The integrand over its mean: an unbiased estimate of 1 where all is seen.
+                    const double weight = r2 > 0.0
+                        ? cosCos / (r2 * r2) * patch.area / (kPi * s.factor[size_t(g)]) : 0.0;
+                    if (!(weight > 0.0)) continue;
+                    ++myRays;
+                    a += weight;
+                    allA += weight;
+                    if (arrives(scene, emitters, acc, box, uint32_t(i), p, y, g)) {
+                        av += weight;
+                        allAV += weight;
+                        anySeen = true;
+                    } else {
+                        anyHidden = true;
+                    }
+                }
+                if (a > 0.0) shares[at] = av / a;
+                mixed = anySeen && anyHidden;
+                // A patch no sample weighs on takes the share of all samples.
+                const double overall = allA > 0.0 ? allAV / allA : 1.0;
+                Vec3d sum(0.0);
+                for (size_t q = 0; q < s.front.size(); ++q) {
+                    const size_t g = s.front[q];
+                    const double v = shares[q] >= 0.0 ? shares[q] : overall;
+                    sum += patches[g].exitance * (s.factor[g] * v);
+                }
+                return sum;
+            };
+            bool mixed = false;
+            Vec3d sum = estimate(S, mixed);
+            // A penumbra: again with kPenumbra times the rays (the only place rays disagree).
+            if (mixed) sum = estimate(kPenumbra * S, mixed);
+            out.irradiance[i] = openvdb::Vec3f(sum);
+        }
+        rays += myRays;
+        factors += myFactors;
+        const size_t d = done += r.size();
+        if (interrupt && interrupt->wasInterrupted(int(100 * d / std::max<size_t>(n, 1)))) {
+            cancelled = true;
+        }
+    });
+    if (cancelled) throw Cancelled("direct light");
+    out.rays = rays;
+    out.factors = factors;
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return out;
+}
+
+} // namespace vdbrad

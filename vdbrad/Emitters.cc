@@ -1,0 +1,213 @@
+#include "vdbrad/Emitters.h"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <unordered_map>
+
+namespace vdbrad {
+
+namespace {
+
+// Patches join voxels whose normals agree this closely (componentwise, to the patch's first
+// voxel): a flat light from a mesh or a level set's plane, not a curved lamp's neighbours.
+constexpr double kNormalTolerance = 1e-4;
+
+bool emits(const openvdb::Vec3f& e) { return e[0] > 0.f || e[1] > 0.f || e[2] > 0.f; }
+
+bool
+byColumn(const openvdb::Vec2i& a, const openvdb::Vec2i& b)
+{
+    return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]);
+}
+
+uint64_t key(int64_t x, int64_t y) { return (uint64_t(uint32_t(x)) << 32) | uint32_t(y); }
+
+// The outline of a set of unit squares (sorted columns) as closed loops of doubled-integer
+// corners, counter-clockwise around the squares, collinear edges merged.
+std::vector<std::vector<openvdb::Vec2i>>
+outline(const std::vector<openvdb::Vec2i>& columns)
+{
+    using openvdb::Vec2i;
+    auto has = [&](int i, int j) {
+        return std::binary_search(columns.begin(), columns.end(), Vec2i(i, j), byColumn);
+    };
+    // A square's side is on the outline iff the square across it is missing.
+    struct Edge { Vec2i from, to; bool used; };
+    std::vector<Edge> edges;
+    for (const Vec2i& c : columns) {
+        const int x0 = 2 * c[0] - 1, x1 = 2 * c[0] + 1, y0 = 2 * c[1] - 1, y1 = 2 * c[1] + 1;
+        if (!has(c[0], c[1] - 1)) edges.push_back({Vec2i(x0, y0), Vec2i(x1, y0), false});
+        if (!has(c[0] + 1, c[1])) edges.push_back({Vec2i(x1, y0), Vec2i(x1, y1), false});
+        if (!has(c[0], c[1] + 1)) edges.push_back({Vec2i(x1, y1), Vec2i(x0, y1), false});
+        if (!has(c[0] - 1, c[1])) edges.push_back({Vec2i(x0, y1), Vec2i(x0, y0), false});
+    }
+    std::unordered_map<uint64_t, std::vector<size_t>> leaving;
+    for (size_t e = 0; e < edges.size(); ++e) {
+        leaving[key(edges[e].from[0], edges[e].from[1])].push_back(e);
+    }
+    // Every corner has as many outline edges in as out, so a walk from any unused edge comes
+    // back to its start; where two loops touch (diagonal squares) either way round is a loop.
+    std::vector<std::vector<Vec2i>> loops;
+    for (size_t first = 0; first < edges.size(); ++first) {
+        if (edges[first].used) continue;
+        std::vector<Vec2i> loop;
+        size_t e = first;
+        while (true) {
+            edges[e].used = true;
+            loop.push_back(edges[e].from);
+            const Vec2i at = edges[e].to;
+            if (at == edges[first].from) break;
+            size_t next = edges.size();
+            for (const size_t candidate : leaving[key(at[0], at[1])]) {
+                if (!edges[candidate].used) { next = candidate; break; }
+            }
+            if (next == edges.size()) break;   // cannot happen for a set of squares
+            e = next;
+        }
+        // Merge straight runs: drop corners where the direction does not change.
+        std::vector<Vec2i> merged;
+        const size_t m = loop.size();
+        for (size_t i = 0; i < m; ++i) {
+            const Vec2i& a = loop[(i + m - 1) % m];
+            const Vec2i& b = loop[i];
+            const Vec2i& c = loop[(i + 1) % m];
+            const int64_t cross = int64_t(b[0] - a[0]) * (c[1] - b[1])
+                - int64_t(b[1] - a[1]) * (c[0] - b[0]);
+            if (cross != 0) merged.push_back(b);
+        }
+        if (merged.size() >= 3) loops.push_back(std::move(merged));
+    }
+    return loops;
+}
+
+} // namespace
+
+openvdb::Vec3d
+EmitterPatch::lift(double u, double v) const
+{
+    const int a = (axis + 1) % 3, b = (axis + 2) % 3;
+    const int first = std::min(a, b), second = std::max(a, b);
+    openvdb::Vec3d q;
+    q[first] = u;
+    q[second] = v;
+    q[axis] = (offset - normal[first] * u - normal[second] * v) / normal[axis];
+    return q;
+}
+
+bool
+EmitterPatch::covers(double u, double v) const
+{
+    const openvdb::Vec2i c(int(std::floor(u + 0.5)), int(std::floor(v + 0.5)));
+    if (c[0] < lower[0] || c[0] > upper[0] || c[1] < lower[1] || c[1] > upper[1]) return false;
+    // A full rectangle needs no search.
+    const size_t box = size_t(upper[0] - lower[0] + 1) * size_t(upper[1] - lower[1] + 1);
+    if (columns.size() == box) return true;
+    return std::binary_search(columns.begin(), columns.end(), c, byColumn);
+}
+
+Emitters::Emitters(const Scene& scene)
+{
+    using openvdb::Coord;
+    using openvdb::Vec3d;
+    const size_t n = scene.size();
+    if (scene.emission().isZero()) return;
+    const VoxelIndex& voxels = scene.voxels();
+    mPatchOf.assign(n, kNone);
+    VoxelIndex::Accessor acc(voxels.tree());
+    std::deque<size_t> queue;
+    for (size_t seed = 0; seed < n; ++seed) {
+        const openvdb::Vec3f e = scene.emission().rgb(seed);
+        if (mPatchOf[seed] != kNone || !emits(e)) continue;
+        const int32_t id = int32_t(mPatches.size());
+        const openvdb::Vec3f ns = scene.normal(seed);
+        std::vector<size_t> members{seed};
+        mPatchOf[seed] = id;
+        queue.push_back(seed);
+        while (!queue.empty()) {
+            const Coord c = voxels.coord(queue.front());
+            queue.pop_front();
+            for (int dx = -1; dx <= 1; ++dx) for (int dy = -1; dy <= 1; ++dy) {
+                for (int dz = -1; dz <= 1; ++dz) {
+                    const int32_t j = acc.getValue(c.offsetBy(dx, dy, dz));
+                    if (j < 0 || mPatchOf[size_t(j)] != kNone) continue;
+                    if (scene.emission().rgb(size_t(j)) != e) continue;
+                    const openvdb::Vec3f d = scene.normal(size_t(j)) - ns;
+                    if (std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])})
+                        > kNormalTolerance) {
+                        continue;
+                    }
+                    mPatchOf[size_t(j)] = id;
+                    members.push_back(size_t(j));
+                    queue.push_back(size_t(j));
+                }
+            }
+        }
+        std::sort(members.begin(), members.end());   // the offset's sum in a fixed order
+        mVoxels += members.size();
+
+        EmitterPatch p;
+        p.normal = Vec3d(ns).unitSafe();
+        p.axis = 0;
+        for (int k = 1; k < 3; ++k) {
+            if (std::abs(p.normal[k]) > std::abs(p.normal[p.axis])) p.axis = k;
+        }
+        p.exitance = Vec3d(e);
+        const int a = std::min((p.axis + 1) % 3, (p.axis + 2) % 3);
+        const int b = std::max((p.axis + 1) % 3, (p.axis + 2) % 3);
+        double offset = 0.0;
+        for (const size_t m : members) {
+            const Coord c = voxels.coord(m);
+            offset += p.normal.dot(c.asVec3d());
+            p.columns.emplace_back(c[a], c[b]);
+        }
+        p.offset = offset / double(members.size());
+        std::sort(p.columns.begin(), p.columns.end(), byColumn);
+        p.columns.erase(std::unique(p.columns.begin(), p.columns.end()), p.columns.end());
+        p.lower = p.upper = p.columns.front();
+        for (const openvdb::Vec2i& c : p.columns) {
+            for (int k = 0; k < 2; ++k) {
+                p.lower[k] = std::min(p.lower[k], c[k]);
+                p.upper[k] = std::max(p.upper[k], c[k]);
+            }
+        }
+        p.area = double(p.columns.size()) / std::abs(p.normal[p.axis]);
+        openvdb::BBoxd box;
+        for (const auto& loop : outline(p.columns)) {
+            std::vector<Vec3d> lifted;
+            for (const openvdb::Vec2i& v : loop) {
+                lifted.push_back(p.lift(0.5 * v[0], 0.5 * v[1]));
+                box.expand(lifted.back());
+            }
+            p.loops.push_back(std::move(lifted));
+        }
+        p.centre = box.getCenter();
+        for (const auto& loop : p.loops) {
+            for (const Vec3d& v : loop) p.radius = std::max(p.radius, (v - p.centre).length());
+        }
+        mPatches.push_back(std::move(p));
+    }
+}
+
+double
+Emitters::power() const
+{
+    double sum = 0.0;
+    for (const EmitterPatch& p : mPatches) {
+        const openvdb::Vec3d w = p.power();
+        sum += (w[0] + w[1] + w[2]) / 3.0;
+    }
+    return sum;
+}
+
+size_t
+Emitters::edges() const
+{
+    size_t sum = 0;
+    for (const EmitterPatch& p : mPatches) {
+        for (const auto& loop : p.loops) sum += loop.size();
+    }
+    return sum;
+}
+
+} // namespace vdbrad
