@@ -208,7 +208,8 @@ TEST_F(DirectTest, LampOverFloorIsExactAtDefaultSettings)
     }
 }
 
-// A black plate between the lamp and an albedo-1 floor. The repository's ray rule stops a ray
+// A black plate between the lamp and an albedo-1 floor. The repository's ray rule (shadow rays
+// from half a voxel above the receiver's centre) stops a ray
 // in a plate voxel's cube wherever it is behind that voxel's plane (what keeps rays out of the
 // cracks of tilted walls), so from below the plate blocks exactly the rays through the box
 // [cells] x [y - 1/2, y]: the reference integrates over the lamp with that visibility (midpoint
@@ -236,12 +237,14 @@ TEST_F(DirectTest, ShadowsMatchTheRayRulesVisibility)
     const double a0 = lo - 0.5, a1 = hi + 0.5;                               // lamp cells
     const double c0 = b0 - 0.5, c1 = b1 + 0.5, d0 = b0 - 0.5, d1 = b1 + 8.5;   // plate cells
     const double y0 = plate - 0.5, y1 = plate;                                // blocking box
-    // Is the ray from (x, 0, z) to (u, lamp, v) blocked? Where along y it is over the plate in
-    // x, and in z, and between y0 and y1: the three intervals meet.
+    // Is the ray from (x, lift, z) to (u, lamp, v) blocked? (Shadow rays start half a voxel
+    // in front of the receiver's centre.) Where along y it is over the plate in x, and in z,
+    // and between y0 and y1: the three intervals meet.
+    const double lift = 0.5;
     auto blocked = [&](double x, double z, double u, double v) {
-        double lo_ = y0, hi_ = y1;
+        double lo_ = y0 - lift, hi_ = y1 - lift;      // heights above the ray's start
         auto clip = [&](double p0, double p1, double e0, double e1) {
-            const double slope = (p1 - p0) / lamp;      // coordinate = p0 + slope y
+            const double slope = (p1 - p0) / (lamp - lift);   // coordinate = p0 + slope y
             if (slope == 0.0) {
                 if (p0 < e0 || p0 > e1) hi_ = -1.0;
                 return;
@@ -415,4 +418,52 @@ TEST_F(DirectTest, ThreadsSchemesAndRestartsAgree)
         worst = std::max(worst, double((again.rgb()[i] - one[i]).length()));
     }
     EXPECT_LT(worst, 1e-5);
+}
+
+// The `emission_area` grid: float, finite, >= 0, or the scene is refused naming it; with it a
+// patch's power is emission x area whatever its voxel count.
+TEST_F(DirectTest, EmissionAreaScalesPatchPowerAndIsChecked)
+{
+    SceneBuilder b;
+    for (int i = 0; i < 4; ++i) {
+        for (int k = 0; k < 4; ++k) b.set(Coord(i, 8, k), Vec3d(0, -1, 0), 0.f, 2.f);
+    }
+    b.set(Coord(0, 0, 0), Vec3d(0, 1, 0), 0.5f, 0.f);
+    const Scene plain = b.build();
+    EXPECT_FALSE(plain.hasEmissionArea());
+    EXPECT_DOUBLE_EQ(Emitters(plain).power(), 2.0 * 16);
+
+    auto withArea = [&](openvdb::GridBase::Ptr area) {
+        openvdb::GridPtrVec grids;
+        const Scene s = b.build();   // for its grids' transform: rebuild them by hand
+        auto normal = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+        auto emission = openvdb::FloatGrid::create(0.f);
+        normal->setName(kNormal);
+        emission->setName(kEmission);
+        for (size_t i = 0; i < s.size(); ++i) {
+            normal->tree().setValue(s.voxels().coord(i), s.normal(i));
+            emission->tree().setValue(s.voxels().coord(i), s.emission().grey(i));
+        }
+        area->setName(kEmissionArea);
+        return buildScene(openvdb::GridPtrVec{normal, emission, area});
+    };
+    // Each emitting voxel carries half a face: the patch keeps its outline, at half the power.
+    auto half = openvdb::FloatGrid::create(0.f);
+    for (int i = 0; i < 4; ++i) for (int k = 0; k < 4; ++k) half->tree().setValue(Coord(i, 8, k), 0.5f);
+    const Scene scaled = withArea(half);
+    ASSERT_TRUE(scaled.hasEmissionArea());
+    const Emitters e(scaled);
+    ASSERT_EQ(e.patches().size(), 1u);
+    EXPECT_DOUBLE_EQ(e.patches()[0].area, 16.0);
+    EXPECT_DOUBLE_EQ(e.power(), 2.0 * 16 * 0.5);
+
+    auto negative = openvdb::FloatGrid::create(0.f);
+    negative->tree().setValue(Coord(1, 8, 1), -1.f);
+    try {
+        withArea(negative);
+        FAIL() << "a negative emission_area was accepted";
+    } catch (const openvdb::ValueError& e) {
+        EXPECT_NE(std::string(e.what()).find("emission_area"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(withArea(openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f))), openvdb::TypeError);
 }

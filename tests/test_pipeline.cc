@@ -46,8 +46,9 @@ const char* kCubeMtl = "newmtl grey\nKd 0.5 0.5 0.5\nnewmtl lamp\nKd 0.5 0.5 0.5
 TEST_F(PipelineTest, VoxelizeWritesTheSceneOfAMesh)
 {
     // Voxel size 1/16, cube shifted by 0.3 voxel: the 17^3 - 15^3 shell (see test_voxelizer).
-    // The top face's 15 x 15 inner voxels emit 2; its rim voxels are as close to a side face,
-    // and ties go to the earlier triangle (the sides come first in the file).
+    // The top face's 17 x 17 voxels emit 2: every voxel holding part of the lamp's face,
+    // including its rim, which a side face is as close to (emission_area says how much of the
+    // face each holds).
     const double h = 1.0 / 16;
     writeText("cube.obj", cubeObj(0.3 * h));
     writeText("cube.mtl", kCubeMtl);
@@ -56,7 +57,7 @@ TEST_F(PipelineTest, VoxelizeWritesTheSceneOfAMesh)
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("1,538 surface voxels from normal grid 'normal'"), std::string::npos)
         << r.out;
-    EXPECT_NE(r.out.find("emission:  grey grid, values in [0, 2], 225 non-zero voxels"),
+    EXPECT_NE(r.out.find("emission:  grey grid, values in [0, 2], 289 non-zero voxels"),
         std::string::npos) << r.out;
     EXPECT_NE(r.err.find("1,538 surface voxels, voxel size 0.0625, 26-separating"),
         std::string::npos) << r.err;

@@ -2,6 +2,7 @@
 // count and normals, materials, and the topology guarantee (no digital line of the matching type
 // passes from inside to outside a closed mesh without meeting a surface voxel).
 #include "vdbrad/DirectionSet.h"
+#include "vdbrad/Emitters.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/Scene.h"
@@ -289,7 +290,7 @@ TEST_F(VoxelizerTest, MaterialsBecomeAlbedoAndEmissionGrids)
     VoxelizeOptions o;
     o.voxelSize = 0.05;
     const openvdb::GridPtrVec grids = voxelizeMesh(m, o);
-    ASSERT_EQ(grids.size(), 3u);
+    ASSERT_EQ(grids.size(), 4u);   // normal, albedo, emission, emission_area
     const auto normal = normalGrid(grids);
     auto albedo = openvdb::gridPtrCast<openvdb::Vec3SGrid>(grids[1]);
     auto emission = openvdb::gridPtrCast<openvdb::Vec3SGrid>(grids[2]);
@@ -318,7 +319,7 @@ TEST_F(VoxelizerTest, MaterialsBecomeAlbedoAndEmissionGrids)
     addBox(g, Vec3d(0.63), Vec3d(0.93), false, -1);
     o.defaultAlbedo = 0.125f;
     const openvdb::GridPtrVec greyGrids = voxelizeMesh(g, o);
-    ASSERT_EQ(greyGrids.size(), 3u);
+    ASSERT_EQ(greyGrids.size(), 4u);
     auto greyAlbedo = openvdb::gridPtrCast<openvdb::FloatGrid>(greyGrids[1]);
     auto greyEmission = openvdb::gridPtrCast<openvdb::FloatGrid>(greyGrids[2]);
     ASSERT_TRUE(greyAlbedo && greyEmission);
@@ -433,6 +434,31 @@ closedCases()
         }});
     }
     return cases;
+}
+
+// Issue 23: the voxelised light emits the mesh light's power at every resolution (the supercover
+// rim made it 8-40 % too large), and a light 1 mm under a ceiling keeps its voxels even where
+// the ceiling is closer to their centres (res 56-72 and 112 lost it entirely).
+TEST_F(VoxelizerTest, EmittersCarryTheMeshLightsPowerAtEveryResolution)
+{
+    const TriangleMesh mesh = readMesh(VDBRAD_SOURCE_DIR "/samples/meshes/cornell_box.obj");
+    const double power = 0.13 * 0.105 * 1.0;   // the light quad's area times Ke
+    for (const int res : {32, 56, 64, 72, 112, 128, 256}) {
+        VoxelizeOptions o;
+        o.resolution = res;
+        const openvdb::GridPtrVec grids = voxelizeMesh(mesh, o);
+        const Scene scene = buildScene(grids);
+        ASSERT_TRUE(scene.hasEmissionArea());
+        const Emitters emitters(scene);
+        ASSERT_EQ(emitters.patches().size(), 1u) << res;
+        const double vs = scene.voxelSize();
+        EXPECT_NEAR(emitters.power() * vs * vs, power, 1e-5 * power) << "res " << res;
+        // The patch covers the light (its columns' area is at least the light's, at most a
+        // voxel wider all round).
+        const double columns = emitters.patches()[0].area * vs * vs;
+        EXPECT_GE(columns, power);
+        EXPECT_LE(columns, (0.13 + 2 * vs) * (0.105 + 2 * vs)) << "res " << res;
+    }
 }
 
 TEST_F(VoxelizerTest, MatchingSeparationBlocksEveryLine)

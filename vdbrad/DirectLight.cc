@@ -24,6 +24,12 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kFarRadii = 32.0;
 // Where a voxel's first rays disagree, it is cast this many times as many (BENCHMARKS.md).
 constexpr size_t kPenumbra = 4;
+// Shadow rays start this far (voxels) in front of the receiver's centre: from the centre itself
+// a ray along a tilted wall runs behind its staircase neighbours' planes (each through its own
+// centre) and is stopped by its own surface ("shadow acne").
+// Half a voxel: on the Cornell box (res 128) the image error against Cycles is 7.2 % from the
+// centre, 6.3 % from 0.5, 1 or 1.5 voxels.
+constexpr double kLift = 0.5;
 // A receiver this close to a patch's plane (voxels) is on it: it sees none of it.
 constexpr double kOnPlane = 1e-9;
 
@@ -247,7 +253,7 @@ directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLight
                     ++myRays;
                     a += weight;
                     allA += weight;
-                    if (arrives(scene, emitters, acc, box, uint32_t(i), p, y, g)) {
+                    if (arrives(scene, emitters, acc, box, uint32_t(i), p + nx * kLift, y, g)) {
                         av += weight;
                         allAV += weight;
                         anySeen = true;

@@ -172,6 +172,13 @@ Emitters::Emitters(const Scene& scene)
             }
         }
         p.area = double(p.columns.size()) / std::abs(p.normal[p.axis]);
+        if (scene.hasEmissionArea()) {
+            // The mesh's emitting area, spread evenly over the patch: its power is the mesh's,
+            // while its outline is the voxels' (a partly covered rim voxel counts in full).
+            double carried = 0.0;
+            for (const size_t m : members) carried += scene.emissionArea().grey(m);
+            p.exitance *= carried / p.area;
+        }
         openvdb::BBoxd box;
         for (const auto& loop : outline(p.columns)) {
             std::vector<Vec3d> lifted;

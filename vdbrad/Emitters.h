@@ -11,6 +11,10 @@
 // 26-separating one is counted once per column), so an axis-aligned light quad of k x l voxels is
 // exactly a k x l rectangle, whatever its offset in the grid.
 //
+// Power: exitance times area. With an `emission_area` grid (the voxelizer's: the mesh's emitting
+// area inside each voxel) a patch's exitance is scaled so that its power is the mesh's,
+// whatever the voxels' coverage of the light's rim.
+//
 // Outline: the squares' edges, an edge shared by two squares cancelled, traced into closed loops
 // (holes run the other way) and collinear edges merged, so a rectangle has four edges however
 // many voxels it covers. Lambert's contour formula over these loops is the exact form factor of

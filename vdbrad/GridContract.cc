@@ -48,6 +48,10 @@ identifyRoles(const openvdb::GridPtrVec& grids, const std::string& surfaceName,
         "float or vec3s");
     requireType(roles.density, roles.density && roles.density->isType<openvdb::FloatGrid>(),
         "density", "float");
+    roles.emissionArea = findGrid(grids, names::kEmissionArea);
+    requireType(roles.emissionArea,
+        roles.emissionArea && roles.emissionArea->isType<openvdb::FloatGrid>(), "emission_area",
+        "float");
 
     if (!surfaceName.empty()) {
         roles.surface = findGrid(grids, surfaceName);

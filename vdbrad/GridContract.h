@@ -4,6 +4,9 @@
 //             a Vec3f grid named `normal` whose active voxels are the surface voxels
 //   albedo    float or Vec3f: diffuse reflectance (surfaces) / single-scattering albedo (clouds)
 //   emission  float or Vec3f: emitted radiosity of surface voxels
+//   emission_area  float, optional: the emitting surface's area inside each emitting voxel
+//             (world units^2; the voxelizer writes it), so that exact direct light emits the
+//             mesh light's power whatever the voxels' coverage
 //   density   FloatGrid (fog volume): extinction coefficient per world unit of a cloud
 //
 // Everything else passes through untouched. The full contract is documented in README.md.
@@ -21,6 +24,7 @@ namespace names {
 constexpr const char* kNormal = "normal";
 constexpr const char* kAlbedo = "albedo";
 constexpr const char* kEmission = "emission";
+constexpr const char* kEmissionArea = "emission_area";
 constexpr const char* kDensity = "density";
 constexpr const char* kRadiosity = "radiosity";
 } // namespace names
@@ -32,6 +36,7 @@ struct GridRoles
     openvdb::GridBase::ConstPtr surface;   ///< level set or `normal` grid
     openvdb::GridBase::ConstPtr albedo;
     openvdb::GridBase::ConstPtr emission;
+    openvdb::GridBase::ConstPtr emissionArea;
     openvdb::GridBase::ConstPtr density;
 };
 

@@ -596,6 +596,7 @@ RadiositySolver::fingerprint() const
     h = hashBytes(mScene.normals().data(), mScene.size() * sizeof(openvdb::Vec3f), h);
     h = mScene.albedo().hash(h);
     h = mScene.emission().hash(h);
+    if (mScene.hasEmissionArea()) h = mScene.emissionArea().hash(h);
     const int64_t options[8] = {mOptions.directions, int64_t(mOptions.lines),
         int64_t(mOptions.update), int64_t(mOptions.visibility), int64_t(mOptions.accelerate),
         mOptions.andersonDepth, int64_t(directions().size()), int64_t(mImpl->wide)};

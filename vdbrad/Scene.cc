@@ -12,12 +12,13 @@ namespace vdbrad {
 
 Scene::Scene(openvdb::math::Transform::Ptr transform, VoxelIndex voxels,
     std::vector<openvdb::Vec3f> normals, Attribute albedo, Attribute emission,
-    std::string surfaceName, GridRoles::SurfaceKind kind)
+    std::string surfaceName, GridRoles::SurfaceKind kind, Attribute emissionArea)
     : mTransform(std::move(transform))
     , mVoxels(std::move(voxels))
     , mNormals(std::move(normals))
     , mAlbedo(std::move(albedo))
     , mEmission(std::move(emission))
+    , mEmissionArea(std::move(emissionArea))
     , mSurfaceName(std::move(surfaceName))
     , mKind(kind)
 {
@@ -35,7 +36,8 @@ size_t
 Scene::memUsage() const
 {
     return mVoxels.size() * (sizeof(openvdb::Coord) + sizeof(openvdb::Vec3f))
-        + size_t(mVoxels.tree().memUsage()) + mAlbedo.memUsage() + mEmission.memUsage();
+        + size_t(mVoxels.tree().memUsage()) + mAlbedo.memUsage() + mEmission.memUsage()
+        + mEmissionArea.memUsage();
 }
 
 namespace {
@@ -87,7 +89,7 @@ buildScene(const openvdb::GridPtrVec& grids, const SceneOptions& options,
         OPENVDB_THROW(openvdb::ValueError, "surface grid '" << surface.getName()
             << "' has no active voxels");
     }
-    for (const auto& g : {roles.albedo, roles.emission}) {
+    for (const auto& g : {roles.albedo, roles.emission, roles.emissionArea}) {
         if (g) checkSameTransform(*g, surface);
     }
 
@@ -116,8 +118,20 @@ buildScene(const openvdb::GridPtrVec& grids, const SceneOptions& options,
         ? Attribute::sample(*roles.emission, index, names::kEmission, 0.f)
         : Attribute(0.f);
 
+    // In voxel faces, as the solver measures areas.
+    Attribute emissionArea(0.f);
+    if (roles.emissionArea) {
+        const Attribute world = Attribute::sample(*roles.emissionArea, index,
+            names::kEmissionArea, 0.f);
+        const double face = surface.transform().voxelSize()[0] * surface.transform().voxelSize()[0];
+        std::vector<float> faces(index.size());
+        for (size_t i = 0; i < faces.size(); ++i) faces[i] = float(world.grey(i) / face);
+        emissionArea = Attribute::fromGrey(std::move(faces));
+    }
+
     return Scene(surface.transform().copy(), std::move(index), std::move(normals),
-        std::move(albedo), std::move(emission), surface.getName(), roles.surfaceKind);
+        std::move(albedo), std::move(emission), surface.getName(), roles.surfaceKind,
+        std::move(emissionArea));
 }
 
 } // namespace vdbrad

@@ -39,7 +39,8 @@ public:
     Scene() = default;
     Scene(openvdb::math::Transform::Ptr transform, VoxelIndex voxels,
         std::vector<openvdb::Vec3f> normals, Attribute albedo, Attribute emission,
-        std::string surfaceName, GridRoles::SurfaceKind kind);
+        std::string surfaceName, GridRoles::SurfaceKind kind,
+        Attribute emissionArea = Attribute(0.f));
 
     size_t size() const { return mVoxels.size(); }
     const VoxelIndex& voxels() const { return mVoxels; }
@@ -62,6 +63,11 @@ public:
     bool isRgb() const { return mAlbedo.isRgb() || mEmission.isRgb(); }
     /// False if nothing emits: the solution is then zero everywhere.
     bool hasEmission() const { return !mEmission.isZero(); }
+    /// Emitting area inside each voxel, in voxel faces (an `emission_area` grid, world units^2,
+    /// over the voxel size squared): exact direct light gives each emitter patch the power
+    /// emission x this area (Emitters.h). hasEmissionArea() is false when the input has none.
+    const Attribute& emissionArea() const { return mEmissionArea; }
+    bool hasEmissionArea() const { return !mEmissionArea.isUniform(); }
 
     /// Name of the grid the surface came from, and how.
     const std::string& surfaceName() const { return mSurfaceName; }
@@ -74,7 +80,7 @@ private:
     openvdb::math::Transform::Ptr mTransform;
     VoxelIndex mVoxels;
     std::vector<openvdb::Vec3f> mNormals;
-    Attribute mAlbedo, mEmission;
+    Attribute mAlbedo, mEmission, mEmissionArea;
     std::string mSurfaceName;
     GridRoles::SurfaceKind mKind = GridRoles::SurfaceKind::None;
 };

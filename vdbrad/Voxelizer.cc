@@ -41,6 +41,50 @@ squaredDistanceToSegment(const Vec3d& p, const Vec3d& a, const Vec3d& b)
     return (a + t * ab - p).lengthSqr();
 }
 
+// Area (voxel faces) of the triangle (a, b, c) inside the cube of the voxel at @a centre:
+// Sutherland-Hodgman against the cube's six planes, then the polygon's vector area.
+double
+areaInVoxel(const Vec3d& centre, const Vec3d& a, const Vec3d& b, const Vec3d& c)
+{
+    std::vector<Vec3d> poly{a, b, c}, next;
+    for (int k = 0; k < 3 && !poly.empty(); ++k) {
+        for (const double side : {-1.0, 1.0}) {
+            // Keep side * (x_k - centre_k) <= 1/2.
+            next.clear();
+            const size_t m = poly.size();
+            for (size_t i = 0; i < m; ++i) {
+                const Vec3d& p = poly[i];
+                const Vec3d& q = poly[(i + 1) % m];
+                const double dp = 0.5 - side * (p[k] - centre[k]);
+                const double dq = 0.5 - side * (q[k] - centre[k]);
+                if (dp >= 0.0) next.push_back(p);
+                if ((dp >= 0.0) != (dq >= 0.0)) next.push_back(p + (q - p) * (dp / (dp - dq)));
+            }
+            poly.swap(next);
+        }
+    }
+    Vec3d sum(0.0);
+    for (size_t i = 0; i + 2 < poly.size(); ++i) {
+        sum += (poly[i + 1] - poly[0]).cross(poly[i + 2] - poly[0]);
+    }
+    return 0.5 * sum.length();
+}
+
+// Emitting mesh inside one voxel: what `emission` and `emission_area` are made of.
+struct EmitHit
+{
+    Coord ijk;
+    float area;        // voxel faces
+    uint32_t triangle;
+
+    bool operator<(const EmitHit& o) const
+    {
+        if (ijk != o.ijk) return ijk < o.ijk;
+        if (area != o.area) return area > o.area;   // the largest first
+        return triangle < o.triangle;
+    }
+};
+
 struct Hit
 {
     Coord ijk;
@@ -250,11 +294,20 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
     if (interrupt) interrupt->start("voxelizing the mesh");
     const bool thick = options.separation == 26;
     tbb::enumerable_thread_specific<std::vector<Hit>> hitsPerThread;
+    tbb::enumerable_thread_specific<std::vector<EmitHit>> emitPerThread;
+    auto emitting = [&](size_t t) {
+        if (!mesh.hasMaterials()) return false;
+        const int32_t m = mesh.triangleMaterials[t];
+        return m >= 0 && size_t(m) < mesh.materials.size()
+            && mesh.materials[size_t(m)].emission != Vec3f(0.f);
+    };
     tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangles.size(), 64),
         [&](const tbb::blocked_range<size_t>& range) {
             if (openvdb::util::wasInterrupted(interrupt)) return;
             std::vector<Hit>& hits = hitsPerThread.local();
+            std::vector<EmitHit>& emitHits = emitPerThread.local();
             for (size_t t = range.begin(); t != range.end(); ++t) {
+                const bool emits = emitting(t);
                 const Vec3d& a = points[mesh.triangles[t][0]];
                 const Vec3d& b = points[mesh.triangles[t][1]];
                 const Vec3d& c = points[mesh.triangles[t][2]];
@@ -288,8 +341,15 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
                             const bool meets = thick ? triangleMeetsVoxel(centre, a, b, c)
                                                      : triangleMeetsVoxelStar(centre, a, b, c);
                             if (!meets) continue;
-                            hits.push_back({Coord(int(centre[0]), int(centre[1]), int(centre[2])),
+                            const Coord ijk{int(centre[0]), int(centre[1]), int(centre[2])};
+                            hits.push_back({ijk,
                                 float(squaredDistanceToTriangle(centre, a, b, c)), uint32_t(t)});
+                            if (emits) {
+                                const double inside = areaInVoxel(centre, a, b, c);
+                                if (inside > 0.0) {
+                                    emitHits.push_back({ijk, float(inside), uint32_t(t)});
+                                }
+                            }
                         }
                     }
                 }
@@ -314,6 +374,21 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
         hits.end());
     if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled();
 
+    // Per voxel, the emitting area it holds (all emitting triangles) and the emitter that holds
+    // most of it: a light never loses a voxel to a coplanar wall that is closer to its centre,
+    // and its power sum over voxels (emission times emission_area) is the mesh's exactly.
+    std::vector<EmitHit> emitHits;
+    for (auto& h : emitPerThread) emitHits.insert(emitHits.end(), h.begin(), h.end());
+    std::sort(emitHits.begin(), emitHits.end());
+    std::vector<EmitHit> emitters;   // per voxel: its largest emitter, with the voxel's total
+    for (const EmitHit& h : emitHits) {
+        if (!emitters.empty() && emitters.back().ijk == h.ijk) {
+            emitters.back().area += h.area;
+        } else {
+            emitters.push_back(h);
+        }
+    }
+
     // Unit world-space normals per triangle; the transform is a uniform scale, so the index-space
     // cross product has the world direction.
     std::vector<Vec3f> normals(mesh.triangles.size());
@@ -325,7 +400,7 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
 
     // Materials actually used decide the grid types: RGB only where some colour is not grey.
     const bool hasMaterials = mesh.hasMaterials();
-    bool rgbAlbedo = false, rgbEmission = false, emits = false;
+    bool rgbAlbedo = false, rgbEmission = false;
     auto material = [&](uint32_t t) -> const Material* {
         if (!hasMaterials) return nullptr;
         const int32_t m = mesh.triangleMaterials[t];
@@ -334,9 +409,10 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
     for (const Hit& h : hits) {
         if (const Material* m = material(h.triangle)) {
             rgbAlbedo = rgbAlbedo || !isGrey(m->albedo);
-            rgbEmission = rgbEmission || !isGrey(m->emission);
-            emits = emits || m->emission != Vec3f(0.f);
         }
+    }
+    for (const EmitHit& e : emitters) {
+        rgbEmission = rgbEmission || !isGrey(material(e.triangle)->emission);
     }
 
     openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(voxelSize);
@@ -381,11 +457,30 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
             return m ? m->albedo : Vec3f(options.defaultAlbedo);
         });
     }
-    if (emits) {
-        colourGrid(names::kEmission, rgbEmission, true, [&](uint32_t t) {
-            const Material* m = material(t);
-            return m ? m->emission : Vec3f(0.f);
-        });
+    if (!emitters.empty()) {
+        // Only where emitting mesh lies (a voxel whose cube merely touches a light emits
+        // nothing), with the voxel's largest emitter's colour.
+        auto put = [&](auto grid, auto convert) {
+            auto acc = grid->getAccessor();
+            for (const EmitHit& e : emitters) {
+                acc.setValue(e.ijk, convert(material(e.triangle)->emission));
+            }
+            grid->setName(names::kEmission);
+            grid->setTransform(xform);
+            grids.push_back(grid);
+        };
+        if (rgbEmission) {
+            put(openvdb::Vec3SGrid::create(Vec3f(0.f)), [](const Vec3f& c) { return c; });
+        } else {
+            put(openvdb::FloatGrid::create(0.f), [](const Vec3f& c) { return c[0]; });
+        }
+        openvdb::FloatGrid::Ptr area = openvdb::FloatGrid::create(0.f);
+        auto acc = area->getAccessor();
+        const double face = voxelSize * voxelSize;
+        for (const EmitHit& e : emitters) acc.setValue(e.ijk, float(e.area * face));
+        area->setName(names::kEmissionArea);
+        area->setTransform(xform);
+        grids.push_back(area);
     }
     if (options.keepSdf) {
         if (interrupt) interrupt->start("level set");

@@ -1,10 +1,14 @@
 # Error of EXR images against a reference, as peers.md measures it: mean |X - ref| / mean ref over
-# the pixels outside the light (reference luminance below half its maximum), all channels; and
+# the pixels outside the light, all channels. The light's pixels: where the reference or the image
+# is brighter than half the reference's maximum, grown by one pixel (a voxelised light's rim is up
+# to half a voxel wider than the mesh light, and each such pixel, 250 times the mean, would
+# dominate the mean: that is the picture's outline, not the light the room receives). And
 # a stripe measure: the high-frequency energy of the back wall's pixels (the residual of a 5 x 5
 # box blur, RMS, relative to their mean), to set against the reference's own.
 #
 #   blender -b -noaudio --factory-startup --python image_error.py -- REF.exr X.exr [X.exr ...]
-#   (a REF2.exr given as "--noise REF2.exr" first: the reference's noise, |REF - REF2| / 2)
+#   ("--noise REF2.exr" first: REF2 of another seed; the reference is then the mean of the two,
+#   and its noise the error of the mean moved by (REF - REF2) / (2 sqrt 2), the mean's own spread)
 import sys
 
 import bpy
@@ -23,14 +27,18 @@ def load(path):
 
 noise = None
 if args[0] == "--noise":
-    noise = args[1]
+    noise = load(args[1])
     args = args[2:]
 ref = load(args[0])
+if noise is not None:
+    # Two seeds: their mean is the reference, half their difference its noise.
+    other = noise
+    ref, noise = 0.5 * (ref + other), 0.5 * (ref - other)
 lum = ref.mean(axis=2)
-mask = lum < 0.5 * lum.max()
-# The back wall: the middle of the picture above the blocks (rows 10-35 %, columns 35-65 %).
+# The back wall between the blocks' tops and the ceiling, right of the tall block (Blender's
+# rows run bottom-up: rows 42-77 %, columns 53-70 % of the default Cornell view).
 h, w = lum.shape
-wall = (slice(int(0.10 * h), int(0.35 * h)), slice(int(0.35 * w), int(0.65 * w)))
+wall = (slice(int(0.42 * h), int(0.77 * h)), slice(int(0.53 * w), int(0.70 * w)))
 
 
 def stripes(img):
@@ -44,12 +52,19 @@ def stripes(img):
 
 
 def error(x):
-    return np.abs(x - ref)[mask].mean() / ref[mask].mean()
+    bright = (lum >= 0.5 * lum.max()) | (x.mean(axis=2) >= 0.5 * lum.max())
+    grown = bright.copy()
+    grown[1:, :] |= bright[:-1, :]
+    grown[:-1, :] |= bright[1:, :]
+    grown[:, 1:] |= bright[:, :-1]
+    grown[:, :-1] |= bright[:, 1:]
+    keep = ~grown
+    return np.abs(x - ref)[keep].mean() / ref[keep].mean()
 
 
 print("reference %s: stripes %.4f" % (args[0], stripes(ref)))
-if noise:
-    print("reference noise (|ref - ref2| / 2): %.4f" % (error(load(noise)) / 2))
+if noise is not None:
+    print("reference noise: %.4f" % error(ref + noise / 2 ** 0.5))
 for path in args[1:]:
     x = load(path)
     print("%s: error %.4f stripes %.4f" % (path, error(x), stripes(x)))
