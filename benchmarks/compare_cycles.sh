@@ -31,7 +31,7 @@ done
 
 images=()
 labels=()
-for run in ${VDBRAD_RUNS:-"64:1000" "128:300" "128:1000" "128:3000" "256:1000" "256:3000"}; do
+for run in ${VDBRAD_RUNS-64:1000 128:300 128:1000 128:3000 256:1000 256:3000 512:1000}; do
   res=${run%%:*}; dirs=${run##*:}
   for direct in sweep exact; do
     img="$out/vdbrad_${res}_${dirs}_${direct}.exr"
@@ -41,7 +41,7 @@ for run in ${VDBRAD_RUNS:-"64:1000" "128:300" "128:1000" "128:3000" "256:1000" "
     images+=("$img"); labels+=("vdbrad res $res, $dirs directions, direct $direct: $t s")
   done
 done
-for spp in ${CYCLES_SPP:-16 64 256 1024}; do
+for spp in ${CYCLES_SPP-16 64 256 1024}; do
   img="$out/cycles_${spp}.exr"
   t=$(seconds blender_run "$spp" 7 "$img")
   images+=("$img"); labels+=("cycles $spp spp: $t s")

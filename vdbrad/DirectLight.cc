@@ -48,14 +48,6 @@ contour(const Vec3d& p, const Vec3d& n, const Vec3d* v, size_t m)
     return sum;
 }
 
-struct Scratch
-{
-    std::vector<Vec3d> clipped;
-    std::vector<double> weight;       // per patch: M_g F(x, g) as a channel mean
-    std::vector<double> factor;       // per patch: F(x, g)
-    std::vector<uint32_t> front;      // patches with weight > 0
-    std::vector<double> shares;       // per front patch: its seen share
-};
 
 // Does the ray from voxel @a self's centre @a p to @a y on patch @a g arrive?
 bool
@@ -141,33 +133,148 @@ patchFormFactor(const Vec3d& p, const Vec3d& n, const EmitterPatch& patch)
     return polygonFormFactor(p, n, patch.loops);
 }
 
-DirectIrradiance
-directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLightOptions& options,
-    const std::vector<uint32_t>* regions, openvdb::util::NullInterrupter* interrupt)
+DirectLightSampler::DirectLightSampler(const Scene& scene, const Emitters& emitters,
+    const DirectLightOptions& options, const std::vector<uint32_t>* regions)
+    : mScene(scene), mEmitters(emitters), mOptions(options), mRegions(regions)
+    , mBox(scene.voxels().bbox())
 {
     if (options.samples < 1) {
         OPENVDB_THROW(openvdb::ValueError, "direct-light samples must be >= 1, got "
             << options.samples);
     }
-    const auto t0 = std::chrono::steady_clock::now();
-    const size_t n = scene.size(), S = size_t(options.samples);
-    const std::vector<EmitterPatch>& patches = emitters.patches();
-    DirectIrradiance out;
-    out.irradiance.assign(n, openvdb::Vec3f(0.f));
-    if (patches.empty()) return out;
-    const openvdb::CoordBBox box = scene.voxels().bbox();
     // The room each patch faces: that of its first voxel (a flat patch faces one room).
-    std::vector<uint32_t> patchRegion(patches.size(), 0);
+    const std::vector<EmitterPatch>& patches = emitters.patches();
+    mPatchRegion.assign(patches.size(), 0);
     if (regions) {
         std::vector<char> known(patches.size(), 0);
-        for (size_t i = 0; i < n; ++i) {
+        for (size_t i = 0; i < scene.size(); ++i) {
             const int32_t g = emitters.patchOf(i);
             if (g == Emitters::kNone || known[size_t(g)]) continue;
             known[size_t(g)] = 1;
-            patchRegion[size_t(g)] = (*regions)[i];
+            mPatchRegion[size_t(g)] = (*regions)[i];
         }
     }
-    tbb::enumerable_thread_specific<Scratch> scratch;
+}
+
+DirectLightSampler::Workspace::Workspace(const DirectLightSampler& sampler)
+    : acc(sampler.mScene.voxels().tree())
+{
+}
+
+openvdb::Vec3d
+DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
+    Workspace& ws) const
+{
+    const std::vector<EmitterPatch>& patches = mEmitters.patches();
+    const size_t S = size_t(mOptions.samples);
+    const int32_t own = mEmitters.patchOf(self);
+    ws.weight.resize(patches.size());
+    ws.factor.resize(patches.size());
+    ws.front.clear();
+    double total = 0.0;
+    const uint32_t room = mRegions ? (*mRegions)[self] : 0;
+    for (size_t g = 0; g < patches.size(); ++g) {
+        if (int32_t(g) == own || mPatchRegion[g] != room) continue;
+        const double f = patchFormFactor(p, nx, patches[g]);
+        ++ws.factors;
+        if (!(f > 0.0)) continue;
+        const Vec3d& m = patches[g].exitance;
+        const double w = f * (m[0] + m[1] + m[2]) / 3.0;
+        if (!(w > 0.0)) continue;
+        ws.factor[g] = f;
+        ws.weight[g] = w;
+        total += w;
+        ws.front.push_back(uint32_t(g));
+    }
+    if (!(total > 0.0)) return Vec3d(0.0);
+
+    // Stratified points on the patches, in proportion to their weights: sample j at
+    // u = (j + xi) / count along the patches' cumulative weight, so consecutive samples
+    // stay on one patch and each patch's visible share is a ratio of its own samples.
+    // Within a patch, the k-th point is the k-th of an R2 sequence (Roberts' additive
+    // recurrence, well spread for any k) over its columns' bounding rectangle, shifted
+    // per voxel; a point off the patch weighs nothing. @a mixed: some ray arrived and
+    // some did not (a penumbra).
+    const double shiftU = unitHash(mixHash(h + 1)), shiftV = unitHash(mixHash(h + 2));
+    auto estimate = [&](size_t count, bool& mixed) {
+        double allA = 0.0, allAV = 0.0;
+        size_t at = 0, k = 0;
+        double below = 0.0;         // cumulative weight before patch front[at]
+        double a = 0.0, av = 0.0;   // patch front[at]: sample weights, those seen
+        bool anySeen = false, anyHidden = false;
+        // Per front patch, its seen share of the integrand; -1: no sample weighs
+        // anything there (none reached it, or all fell off it or behind x).
+        std::vector<double>& shares = ws.shares;
+        shares.assign(ws.front.size(), -1.0);
+        for (size_t j = 0; j < count; ++j) {
+            const double u = (double(j) + unitHash(mixHash(h + 3 * j + 3)))
+                / double(count) * total;
+            while (at + 1 < ws.front.size() && u >= below + ws.weight[ws.front[at]]) {
+                if (a > 0.0) shares[at] = av / a;
+                below += ws.weight[ws.front[at]];
+                ++at;
+                k = 0;
+                a = av = 0.0;
+            }
+            const int32_t g = int32_t(ws.front[at]);
+            const EmitterPatch& patch = patches[size_t(g)];
+            const double su = std::fmod(shiftU + 0.7548776662466927 * double(k), 1.0);
+            const double sv = std::fmod(shiftV + 0.5698402909980532 * double(k), 1.0);
+            ++k;
+            const double pu = double(patch.lower[0]) - 0.5
+                + su * double(patch.upper[0] - patch.lower[0] + 1);
+            const double pv = double(patch.lower[1]) - 0.5
+                + sv * double(patch.upper[1] - patch.lower[1] + 1);
+            if (!patch.covers(pu, pv)) continue;
+            const Vec3d y = patch.lift(pu, pv);
+            const Vec3d d = y - p;
+            const double r2 = d.lengthSqr();
+            const double cosCos =
+                std::max(0.0, nx.dot(d)) * std::max(0.0, -patch.normal.dot(d));
+            // The integrand over its mean: an unbiased estimate of 1 where all is seen.
+            const double weight = r2 > 0.0
+                ? cosCos / (r2 * r2) * patch.area / (kPi * ws.factor[size_t(g)]) : 0.0;
+            if (!(weight > 0.0)) continue;
+            ++ws.rays;
+            a += weight;
+            allA += weight;
+            if (arrives(mScene, mEmitters, ws.acc, mBox, uint32_t(self), p + nx * kLift, y, g)) {
+                av += weight;
+                allAV += weight;
+                anySeen = true;
+            } else {
+                anyHidden = true;
+            }
+        }
+        if (a > 0.0) shares[at] = av / a;
+        mixed = anySeen && anyHidden;
+        // A patch no sample weighs on takes the share of all samples.
+        const double overall = allA > 0.0 ? allAV / allA : 1.0;
+        Vec3d sum(0.0);
+        for (size_t q = 0; q < ws.front.size(); ++q) {
+            const size_t g = ws.front[q];
+            const double v = shares[q] >= 0.0 ? shares[q] : overall;
+            sum += patches[g].exitance * (ws.factor[g] * v);
+        }
+        return sum;
+    };
+    bool mixed = false;
+    Vec3d sum = estimate(S, mixed);
+    // A penumbra: again with kPenumbra times the rays (the only place rays disagree).
+    if (mixed) sum = estimate(kPenumbra * S, mixed);
+    return sum;
+}
+
+DirectIrradiance
+directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLightOptions& options,
+    const std::vector<uint32_t>* regions, openvdb::util::NullInterrupter* interrupt)
+{
+    const DirectLightSampler sampler(scene, emitters, options, regions);
+    const auto t0 = std::chrono::steady_clock::now();
+    const size_t n = scene.size();
+    DirectIrradiance out;
+    out.irradiance.assign(n, openvdb::Vec3f(0.f));
+    if (emitters.patches().empty()) return out;
     std::atomic<uint64_t> rays{0}, factors{0};
     std::atomic<size_t> done{0};
     std::atomic<bool> cancelled{false};
@@ -175,112 +282,13 @@ directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLight
     using Range = tbb::blocked_range<size_t>;
     tbb::parallel_for(Range(0, n, 64), [&](const Range& r) {
         if (cancelled) return;
-        Scratch& s = scratch.local();
-        s.weight.resize(patches.size());
-        s.factor.resize(patches.size());
-        VoxelIndex::Accessor acc(scene.voxels().tree());
-        uint64_t myRays = 0, myFactors = 0;
+        DirectLightSampler::Workspace ws(sampler);
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            const Vec3d p = scene.voxels().coord(i).asVec3d();
-            const Vec3d nx(scene.normal(i));
-            const int32_t own = emitters.patchOf(i);
-            s.front.clear();
-            double total = 0.0;
-            const uint32_t room = regions ? (*regions)[i] : 0;
-            for (size_t g = 0; g < patches.size(); ++g) {
-                if (int32_t(g) == own || patchRegion[g] != room) continue;
-                const double f = patchFormFactor(p, nx, patches[g]);
-                ++myFactors;
-                if (!(f > 0.0)) continue;
-                const Vec3d& m = patches[g].exitance;
-                const double w = f * (m[0] + m[1] + m[2]) / 3.0;
-                if (!(w > 0.0)) continue;
-                s.factor[g] = f;
-                s.weight[g] = w;
-                total += w;
-                s.front.push_back(uint32_t(g));
-            }
-            if (!(total > 0.0)) continue;
-
-            // Stratified points on the patches, in proportion to their weights: sample j at
-            // u = (j + xi) / count along the patches' cumulative weight, so consecutive samples
-            // stay on one patch and each patch's visible share is a ratio of its own samples.
-            // Within a patch, the k-th point is the k-th of an R2 sequence (Roberts' additive
-            // recurrence, well spread for any k) over its columns' bounding rectangle, shifted
-            // per voxel; a point off the patch weighs nothing. @a mixed: some ray arrived and
-            // some did not (a penumbra).
-            const uint64_t h = mixHash(options.seed ^ mixHash(uint64_t(i)));
-            const double shiftU = unitHash(mixHash(h + 1)), shiftV = unitHash(mixHash(h + 2));
-            auto estimate = [&](size_t count, bool& mixed) {
-                double allA = 0.0, allAV = 0.0;
-                size_t at = 0, k = 0;
-                double below = 0.0;         // cumulative weight before patch front[at]
-                double a = 0.0, av = 0.0;   // patch front[at]: sample weights, those seen
-                bool anySeen = false, anyHidden = false;
-                // Per front patch, its seen share of the integrand; -1: no sample weighs
-                // anything there (none reached it, or all fell off it or behind x).
-                std::vector<double>& shares = s.shares;
-                shares.assign(s.front.size(), -1.0);
-                for (size_t j = 0; j < count; ++j) {
-                    const double u = (double(j) + unitHash(mixHash(h + 3 * j + 3)))
-                        / double(count) * total;
-                    while (at + 1 < s.front.size() && u >= below + s.weight[s.front[at]]) {
-                        if (a > 0.0) shares[at] = av / a;
-                        below += s.weight[s.front[at]];
-                        ++at;
-                        k = 0;
-                        a = av = 0.0;
-                    }
-                    const int32_t g = int32_t(s.front[at]);
-                    const EmitterPatch& patch = patches[size_t(g)];
-                    const double su = std::fmod(shiftU + 0.7548776662466927 * double(k), 1.0);
-                    const double sv = std::fmod(shiftV + 0.5698402909980532 * double(k), 1.0);
-                    ++k;
-                    const double pu = double(patch.lower[0]) - 0.5
-                        + su * double(patch.upper[0] - patch.lower[0] + 1);
-                    const double pv = double(patch.lower[1]) - 0.5
-                        + sv * double(patch.upper[1] - patch.lower[1] + 1);
-                    if (!patch.covers(pu, pv)) continue;
-                    const Vec3d y = patch.lift(pu, pv);
-                    const Vec3d d = y - p;
-                    const double r2 = d.lengthSqr();
-                    const double cosCos =
-                        std::max(0.0, nx.dot(d)) * std::max(0.0, -patch.normal.dot(d));
-                    // The integrand over its mean: an unbiased estimate of 1 where all is seen.
-                    const double weight = r2 > 0.0
-                        ? cosCos / (r2 * r2) * patch.area / (kPi * s.factor[size_t(g)]) : 0.0;
-                    if (!(weight > 0.0)) continue;
-                    ++myRays;
-                    a += weight;
-                    allA += weight;
-                    if (arrives(scene, emitters, acc, box, uint32_t(i), p + nx * kLift, y, g)) {
-                        av += weight;
-                        allAV += weight;
-                        anySeen = true;
-                    } else {
-                        anyHidden = true;
-                    }
-                }
-                if (a > 0.0) shares[at] = av / a;
-                mixed = anySeen && anyHidden;
-                // A patch no sample weighs on takes the share of all samples.
-                const double overall = allA > 0.0 ? allAV / allA : 1.0;
-                Vec3d sum(0.0);
-                for (size_t q = 0; q < s.front.size(); ++q) {
-                    const size_t g = s.front[q];
-                    const double v = shares[q] >= 0.0 ? shares[q] : overall;
-                    sum += patches[g].exitance * (s.factor[g] * v);
-                }
-                return sum;
-            };
-            bool mixed = false;
-            Vec3d sum = estimate(S, mixed);
-            // A penumbra: again with kPenumbra times the rays (the only place rays disagree).
-            if (mixed) sum = estimate(kPenumbra * S, mixed);
-            out.irradiance[i] = openvdb::Vec3f(sum);
+            out.irradiance[i] = openvdb::Vec3f(sampler.at(scene.voxels().coord(i).asVec3d(),
+                Vec3d(scene.normal(i)), i, mixHash(options.seed ^ mixHash(uint64_t(i))), ws));
         }
-        rays += myRays;
-        factors += myFactors;
+        rays += ws.rays;
+        factors += ws.factors;
         const size_t d = done += r.size();
         if (interrupt && interrupt->wasInterrupted(int(100 * d / std::max<size_t>(n, 1)))) {
             cancelled = true;

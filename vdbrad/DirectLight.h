@@ -73,6 +73,42 @@ double polygonFormFactor(const openvdb::Vec3d& p, const openvdb::Vec3d& n,
 double patchFormFactor(const openvdb::Vec3d& p, const openvdb::Vec3d& n,
     const EmitterPatch& patch);
 
+/// @brief The direct light at any surface point: what directIrradiance() computes at voxel
+/// centres, for a renderer's gather at a pixel's visible point. Read-only: at() may be called
+/// from several threads, each with its own Workspace.
+class DirectLightSampler
+{
+public:
+    /// @param regions  as directIrradiance()'s; kept by pointer (must outlive the sampler)
+    /// @throw openvdb::ValueError if options.samples < 1
+    DirectLightSampler(const Scene& scene, const Emitters& emitters,
+        const DirectLightOptions& options, const std::vector<uint32_t>* regions = nullptr);
+
+    /// Per-thread scratch memory, and the rays and form factors it has counted.
+    struct Workspace
+    {
+        explicit Workspace(const DirectLightSampler& sampler);
+        VoxelIndex::Accessor acc;
+        std::vector<double> weight, factor, shares;
+        std::vector<uint32_t> front;
+        uint64_t rays = 0, factors = 0;
+    };
+
+    /// @brief Direct irradiance (per channel) at index-space point @a p with unit normal @a n
+    /// on voxel @a self (its own patch and its own cube do not count), from the sample
+    /// sequence of hash @a h.
+    openvdb::Vec3d at(const openvdb::Vec3d& p, const openvdb::Vec3d& n, size_t self, uint64_t h,
+        Workspace& workspace) const;
+
+private:
+    const Scene& mScene;
+    const Emitters& mEmitters;
+    DirectLightOptions mOptions;
+    const std::vector<uint32_t>* mRegions;
+    openvdb::CoordBBox mBox;
+    std::vector<uint32_t> mPatchRegion;   // the room each patch faces
+};
+
 struct DirectIrradiance
 {
     /// Per voxel (Scene order), per channel (grey scenes: three equal channels).

@@ -717,7 +717,8 @@ RadiositySolver::describe() const
        << (doublePrecision() ? ", double precision" : "");
     if (exactDirect()) {
         os << ", exact direct light from " << withCommas(emitters().voxels())
-           << " emitting voxels (" << emitters().patches().size() << " patches, "
+           << " emitting voxels (" << emitters().patches().size()
+           << (emitters().patches().size() == 1 ? " patch, " : " patches, ")
            << mOptions.directSamples << " shadow rays per voxel)";
     }
     return os.str();
