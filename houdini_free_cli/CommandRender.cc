@@ -43,6 +43,8 @@ runRender(const Arguments& a)
     const std::vector<double> bg = numberList(a, "background", 3, "r,g,b");
     o.background = openvdb::Vec3f(float(bg[0]), float(bg[1]), float(bg[2]));
     o.samplesPerPixel = a.getInt("aa");
+    o.gather = a.getInt("gather");
+    o.directSamples = a.getInt("direct-samples");
     o.cloud.extinctionScale = float(a.getFloat("extinction-scale"));
     o.cloudSource = a.getString("cloud-source");
     const ExrPixel pixel = choice<ExrPixel>(a, "exr-type",

@@ -272,6 +272,14 @@ commands()
                     .oneOf({"half", "float"}),
                 OptionSpec{"aa", OptionType::Int, "1", "3",
                     "antialiasing: N x N samples per pixel"}.within(1, 16),
+                OptionSpec{"gather", OptionType::Int, "0", "256",
+                    "surfaces: final gather with this many rays per pixel sample from the point "
+                    "the camera sees (E + albedo x (exact direct light + mean reflected radiosity "
+                    "of what the rays hit): smooth where the voxels are not); 0: show the "
+                    "voxels' radiosity"}.within(0, 65536),
+                OptionSpec{"direct-samples", OptionType::Int, "16", "64",
+                    "--gather: shadow rays per pixel sample for the direct light"}
+                    .within(1, 65536),
                 {"background", OptionType::String, "0,0,0", "0.2,0.3,0.5",
                     "linear RGB seen where rays hit nothing"},
                 OptionSpec{"extinction-scale", OptionType::Float, "1", "10",

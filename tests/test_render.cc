@@ -2,6 +2,7 @@
 // hit count from the camera geometry, per-pixel hit test), smooth interpolation of a linear ramp,
 // no bleeding across a corner, a level-set sphere's silhouette, exact emission-absorption through
 // a homogeneous cloud, the default camera, EXR and PNG bytes, and the errors users meet.
+#include "grids/CanonicalGrids.h"
 #include "vdbrad/ImageIO.h"
 #include "vdbrad/Renderer.h"
 #include "vdbrad/vdbrad.h"
@@ -592,4 +593,62 @@ TEST_F(RenderTest, ClearErrors)
     bad.height = 2;
     bad.pixels.resize(3);
     EXPECT_THROW(encodeExr(bad), openvdb::ValueError);
+}
+
+// Issue 23, the final gather (--gather): a pixel shows E + rho (D + G) at the point of the voxel's
+// plane the camera sees. Under a black lamp over an open floor G is 0 (the gather's rays find the
+// black lamp or the sky) and D is exact at that point, not at the voxel's centre: every floor
+// pixel equals rho E F(point -> lamp cells) to float rounding.
+TEST_F(RenderTest, FinalGatherShowsTheExactDirectLightAtEachPixelsPoint)
+{
+    grids::BuildParams p;
+    p.res = 32;
+    p.radius = 0.1f;
+    p.height = 0.25f;
+    openvdb::GridPtrVec grids = grids::makeLamp(p);
+    const Scene scene = buildScene(grids);
+    grids.push_back(solveRadiosity(scene));
+    // The lamp's cells in index space, from its voxels.
+    double lo = 1e9, hi = -1e9, top = 0.0;
+    for (size_t i = 0; i < scene.size(); ++i) {
+        if (scene.emission().grey(i) <= 0.f) continue;
+        const Coord c = scene.voxels().coord(i);
+        lo = std::min(lo, c.x() - 0.5);
+        hi = std::max(hi, c.x() + 0.5);
+        top = c.y();
+    }
+    RenderOptions o;
+    o.width = 48;
+    o.height = 36;
+    o.gather = 8;
+    Camera cam;
+    cam.eye = Vec3d(0.5, 0.15, -0.3);
+    cam.target = Vec3d(0.5, 0.0, 0.45);
+    cam.fov = 50.0;
+    o.camera = cam;
+    const Renderer renderer(grids, o);
+    const Image image = renderer.render();
+    const openvdb::math::Transform& xform = scene.transform();
+    size_t checked = 0;
+    double worst = 0.0;
+    for (int y = 0; y < o.height; ++y) {
+        for (int x = 0; x < o.width; ++x) {
+            const Renderer::RayT ray = renderer.primaryRay(x + 0.5, y + 0.5);
+            // Where the ray enters the floor voxels' cubes (index y = 1/2), moved onto their
+            // plane (index y = 0).
+            const Vec3d e = xform.worldToIndex(ray.eye());
+            const Vec3d f = xform.worldToIndex(ray.eye() + ray.dir()) - e;
+            if (!(f[1] < 0.0)) continue;
+            const Vec3d q = e + f * ((0.5 - e[1]) / f[1]);
+            // Away from the floor's rim and from the lamp's shadowless but cut-off view.
+            if (q[0] < 1.0 || q[0] > p.res - 2.0 || q[2] < 1.0 || q[2] > p.res - 2.0) continue;
+            const double exact = 0.5 * grids::rectangleFactor(lo - q[0], hi - q[0], lo - q[2],
+                hi - q[2], top);
+            const double got = image.at(x, y)[0];
+            worst = std::max(worst, std::abs(got - exact) / exact);
+            ++checked;
+        }
+    }
+    EXPECT_GT(checked, 300u);
+    EXPECT_LT(worst, 1e-4);
 }

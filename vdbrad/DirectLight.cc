@@ -222,9 +222,9 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
             const double sv = std::fmod(shiftV + 0.5698402909980532 * double(k), 1.0);
             ++k;
             const double pu = double(patch.lower[0]) - 0.5
-                + su * double(patch.upper[0] - patch.lower[0] + 1);
+                + su * (double(patch.upper[0]) - patch.lower[0] + 1);
             const double pv = double(patch.lower[1]) - 0.5
-                + sv * double(patch.upper[1] - patch.lower[1] + 1);
+                + sv * (double(patch.upper[1]) - patch.lower[1] + 1);
             if (!patch.covers(pu, pv)) continue;
             const Vec3d y = patch.lift(pu, pv);
             const Vec3d d = y - p;

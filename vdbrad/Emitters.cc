@@ -1,9 +1,12 @@
 #include "vdbrad/Emitters.h"
 
 #include <algorithm>
+#include <array>
+#include <climits>
 #include <cmath>
+#include <cstdint>
 #include <deque>
-#include <unordered_map>
+#include <map>
 
 namespace vdbrad {
 
@@ -21,60 +24,65 @@ byColumn(const openvdb::Vec2i& a, const openvdb::Vec2i& b)
     return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]);
 }
 
-uint64_t key(int64_t x, int64_t y) { return (uint64_t(uint32_t(x)) << 32) | uint32_t(y); }
+// A corner of the outline in doubled coordinates (squares' corners are odd): 64 bits, as
+// doubling an int32 coordinate may not fit in 32.
+using Corner = std::array<int64_t, 2>;
 
 // The outline of a set of unit squares (sorted columns) as closed loops of doubled-integer
 // corners, counter-clockwise around the squares, collinear edges merged.
-std::vector<std::vector<openvdb::Vec2i>>
+std::vector<std::vector<Corner>>
 outline(const std::vector<openvdb::Vec2i>& columns)
 {
     using openvdb::Vec2i;
-    auto has = [&](int i, int j) {
-        return std::binary_search(columns.begin(), columns.end(), Vec2i(i, j), byColumn);
+    auto has = [&](int64_t i, int64_t j) {
+        if (i < INT32_MIN || i > INT32_MAX || j < INT32_MIN || j > INT32_MAX) return false;
+        return std::binary_search(columns.begin(), columns.end(), Vec2i(int(i), int(j)),
+            byColumn);
     };
     // A square's side is on the outline iff the square across it is missing.
-    struct Edge { Vec2i from, to; bool used; };
+    struct Edge { Corner from, to; bool used; };
     std::vector<Edge> edges;
     for (const Vec2i& c : columns) {
-        const int x0 = 2 * c[0] - 1, x1 = 2 * c[0] + 1, y0 = 2 * c[1] - 1, y1 = 2 * c[1] + 1;
-        if (!has(c[0], c[1] - 1)) edges.push_back({Vec2i(x0, y0), Vec2i(x1, y0), false});
-        if (!has(c[0] + 1, c[1])) edges.push_back({Vec2i(x1, y0), Vec2i(x1, y1), false});
-        if (!has(c[0], c[1] + 1)) edges.push_back({Vec2i(x1, y1), Vec2i(x0, y1), false});
-        if (!has(c[0] - 1, c[1])) edges.push_back({Vec2i(x0, y1), Vec2i(x0, y0), false});
+        const int64_t i = c[0], j = c[1];
+        const int64_t x0 = 2 * i - 1, x1 = 2 * i + 1, y0 = 2 * j - 1, y1 = 2 * j + 1;
+        if (!has(i, j - 1)) edges.push_back({Corner{x0, y0}, Corner{x1, y0}, false});
+        if (!has(i + 1, j)) edges.push_back({Corner{x1, y0}, Corner{x1, y1}, false});
+        if (!has(i, j + 1)) edges.push_back({Corner{x1, y1}, Corner{x0, y1}, false});
+        if (!has(i - 1, j)) edges.push_back({Corner{x0, y1}, Corner{x0, y0}, false});
     }
-    std::unordered_map<uint64_t, std::vector<size_t>> leaving;
-    for (size_t e = 0; e < edges.size(); ++e) {
-        leaving[key(edges[e].from[0], edges[e].from[1])].push_back(e);
-    }
+    std::map<Corner, std::vector<size_t>> leaving;
+    for (size_t e = 0; e < edges.size(); ++e) leaving[edges[e].from].push_back(e);
     // Every corner has as many outline edges in as out, so a walk from any unused edge comes
     // back to its start; where two loops touch (diagonal squares) either way round is a loop.
-    std::vector<std::vector<Vec2i>> loops;
+    std::vector<std::vector<Corner>> loops;
     for (size_t first = 0; first < edges.size(); ++first) {
         if (edges[first].used) continue;
-        std::vector<Vec2i> loop;
+        std::vector<Corner> loop;
         size_t e = first;
         while (true) {
             edges[e].used = true;
             loop.push_back(edges[e].from);
-            const Vec2i at = edges[e].to;
+            const Corner at = edges[e].to;
             if (at == edges[first].from) break;
             size_t next = edges.size();
-            for (const size_t candidate : leaving[key(at[0], at[1])]) {
+            for (const size_t candidate : leaving[at]) {
                 if (!edges[candidate].used) { next = candidate; break; }
             }
             if (next == edges.size()) break;   // cannot happen for a set of squares
             e = next;
         }
-        // Merge straight runs: drop corners where the direction does not change.
-        std::vector<Vec2i> merged;
+        // Merge straight runs: drop corners where the direction does not change (the steps
+        // run along the axes, so their signs decide).
+        auto sign = [](int64_t d) { return int64_t(d > 0) - int64_t(d < 0); };
+        std::vector<Corner> merged;
         const size_t m = loop.size();
         for (size_t i = 0; i < m; ++i) {
-            const Vec2i& a = loop[(i + m - 1) % m];
-            const Vec2i& b = loop[i];
-            const Vec2i& c = loop[(i + 1) % m];
-            const int64_t cross = int64_t(b[0] - a[0]) * (c[1] - b[1])
-                - int64_t(b[1] - a[1]) * (c[0] - b[0]);
-            if (cross != 0) merged.push_back(b);
+            const Corner& a = loop[(i + m - 1) % m];
+            const Corner& b = loop[i];
+            const Corner& c = loop[(i + 1) % m];
+            const int64_t turn = sign(b[0] - a[0]) * sign(c[1] - b[1])
+                - sign(b[1] - a[1]) * sign(c[0] - b[0]);
+            if (turn != 0) merged.push_back(b);
         }
         if (merged.size() >= 3) loops.push_back(std::move(merged));
     }
@@ -101,8 +109,8 @@ EmitterPatch::covers(double u, double v) const
     const openvdb::Vec2i c(int(std::floor(u + 0.5)), int(std::floor(v + 0.5)));
     if (c[0] < lower[0] || c[0] > upper[0] || c[1] < lower[1] || c[1] > upper[1]) return false;
     // A full rectangle needs no search.
-    const size_t box = size_t(upper[0] - lower[0] + 1) * size_t(upper[1] - lower[1] + 1);
-    if (columns.size() == box) return true;
+    const double box = (double(upper[0]) - lower[0] + 1) * (double(upper[1]) - lower[1] + 1);
+    if (double(columns.size()) == box) return true;
     return std::binary_search(columns.begin(), columns.end(), c, byColumn);
 }
 
@@ -182,8 +190,8 @@ Emitters::Emitters(const Scene& scene)
         openvdb::BBoxd box;
         for (const auto& loop : outline(p.columns)) {
             std::vector<Vec3d> lifted;
-            for (const openvdb::Vec2i& v : loop) {
-                lifted.push_back(p.lift(0.5 * v[0], 0.5 * v[1]));
+            for (const Corner& v : loop) {
+                lifted.push_back(p.lift(0.5 * double(v[0]), 0.5 * double(v[1])));
                 box.expand(lifted.back());
             }
             p.loops.push_back(std::move(lifted));

@@ -5,7 +5,7 @@
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
 #include "vdbrad/SampleHash.h"
-#include "vdbrad/VoxelMarch.h"
+#include "vdbrad/SurfaceRays.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -23,53 +23,16 @@ namespace {
 
 using Accessor = VoxelIndex::Accessor;
 
+static_assert(MonteCarloSolver::kSky == kRaySky && MonteCarloSolver::kBack == kRayBack,
+    "one ray code");
+
 // What the ray from the centre of voxel @a self along unit @a d hits (see the header).
 uint32_t
 trace(const Scene& scene, Accessor& acc, const openvdb::CoordBBox& box, uint32_t self,
     const openvdb::Vec3d& d)
 {
-    using openvdb::Vec3d;
-    const Vec3d o = scene.voxels().coord(self).asVec3d();
-    uint32_t hit = MonteCarloSolver::kSky;
-    // marchVoxels works in cells [c, c + 1): half a voxel off index space.
-    marchVoxels(acc, box, o + Vec3d(0.5), d, 0.0, std::numeric_limits<double>::infinity(),
-        [&](int32_t index, double tIn, double tOut) {
-            if (uint32_t(index) == self) return true;
-            const Vec3d n(scene.normal(size_t(index)));
-            const Vec3d c = scene.voxels().coord(size_t(index)).asVec3d();
-            if (crossesVoxelSurface(o, d, tIn, tOut, c, n)) {
-                hit = d.dot(n) < 0.0 ? uint32_t(index) : MonteCarloSolver::kBack;
-                return false;
-            }
-            return true;   // crosses the cube in front of the plane: passes
-        });
-    return hit;
+    return traceSurface(scene, acc, box, self, scene.voxels().coord(self).asVec3d(), d);
 }
-
-// S cosine-distributed directions about a voxel's normal: stratified in sin^2(theta) (equal-flux
-// bands of a cosine lobe), a golden-ratio sequence in phi, offsets from the hash @a h.
-struct CosineRays
-{
-    CosineRays(const openvdb::Vec3f& normal, uint64_t h, size_t S)
-        : n(normal), h(h), phase(unitHash(h)), S(double(S))
-    {
-        const openvdb::Vec3d axis = std::abs(n[0]) < 0.6 ? openvdb::Vec3d(1, 0, 0)
-            : openvdb::Vec3d(0, 1, 0);
-        t1 = n.cross(axis).unitSafe();
-        t2 = n.cross(t1);
-    }
-    openvdb::Vec3d operator()(size_t s) const
-    {
-        const double u = (double(s) + unitHash(mixHash(h + 2 * s + 1))) / S;
-        const double v = std::fmod(phase + 0.6180339887498949 * double(s), 1.0);
-        const double sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
-        const double phi = 6.283185307179586 * v;   // 2 pi v
-        return (t1 * (sinT * std::cos(phi)) + t2 * (sinT * std::sin(phi)) + n * cosT).unitSafe();
-    }
-    openvdb::Vec3d n, t1, t2;
-    uint64_t h;
-    double phase, S;
-};
 
 template<typename ValueT> ValueT value(const Attribute& a, size_t i);
 template<> float value<float>(const Attribute& a, size_t i) { return a.grey(i); }

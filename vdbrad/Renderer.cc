@@ -1,5 +1,11 @@
 #include "vdbrad/Renderer.h"
 
+#include "vdbrad/DirectLight.h"
+#include "vdbrad/Emitters.h"
+#include "vdbrad/Enclosure.h"
+#include "vdbrad/SampleHash.h"
+#include "vdbrad/SurfaceRays.h"
+
 #include "vdbrad/Errors.h"
 #include "vdbrad/GridContract.h"
 #include "vdbrad/VoxelMarch.h"
@@ -14,6 +20,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <sstream>
 
@@ -139,6 +146,33 @@ struct Renderer::LevelSetShared
     LevelSetIntersector intersector;
 };
 
+struct Renderer::Gather
+{
+    Gather(const Scene& scene, const Attribute& radiosity, const RenderOptions& options)
+        : emitters(scene)
+        , regions(findRegions(scene.voxels(), scene.normals(), LineType::Naive))
+        , sampler(scene, emitters, directOptions(options),
+              regions.cavities > 0 ? &regions.region : nullptr)
+        , box(scene.voxels().bbox())
+    {
+        reflected.resize(scene.size());
+        for (size_t i = 0; i < scene.size(); ++i) {
+            reflected[i] = Vec3d(radiosity.rgb(i)) - Vec3d(scene.emission().rgb(i));
+        }
+    }
+    static DirectLightOptions directOptions(const RenderOptions& options)
+    {
+        DirectLightOptions d;
+        d.samples = options.directSamples;
+        return d;
+    }
+    Emitters emitters;
+    Regions regions;
+    DirectLightSampler sampler;
+    openvdb::CoordBBox box;
+    std::vector<Vec3d> reflected;
+};
+
 struct Renderer::Tracer
 {
     explicit Tracer(const Renderer& r)
@@ -155,6 +189,40 @@ struct Renderer::Tracer
         if (r.mHasCloud) {
             mCloud.emplace(r.mCloud.voxels().tree());
         }
+        if (r.mGather) mDirect.emplace(r.mGather->sampler);
+    }
+
+    // The final gather at index-space point p seen on voxel v (RenderOptions::gather): the
+    // point moved onto v's plane (inside its cube), E + rho (D + mean reflected radiosity of
+    // what cosine rays from half a voxel above it hit), the sample sequences hashed from @a h.
+    Vec3f gatherAt(const Vec3d& p, size_t v, uint64_t h)
+    {
+        const Scene& scene = mR.mScene;
+        const Gather& g = *mR.mGather;
+        const Vec3d c = scene.voxels().coord(v).asVec3d();
+        const Vec3d n(scene.normal(v));
+        Vec3d q = p - n * (p - c).dot(n);
+        for (int k = 0; k < 3; ++k) q[k] = std::clamp(q[k], c[k] - 0.5, c[k] + 0.5);
+        const Vec3d direct = g.sampler.at(q, n, v, mixHash(h), *mDirect);
+        const size_t N = size_t(mR.mOptions.gather);
+        const CosineRays rays(scene.normal(v), mixHash(h + 1), N);
+        const bool closed = g.regions.region.empty() ? false : g.regions.region[v] != 0;
+        const Vec3d origin = q + n * 0.5;   // as shadow rays: off the staircase of tilted walls
+        Vec3d sum(0.0);
+        size_t used = 0;
+        for (size_t s = 0; s < N; ++s) {
+            const uint32_t hit = traceSurface(scene, *mSurface, g.box, uint32_t(v), origin,
+                rays(s));
+            // A closed room's voxel leaving through its own cube: a digitisation crack.
+            if (hit == kRaySky && closed) continue;
+            if (hit < kRayBack) sum += g.reflected[hit];
+            ++used;
+        }
+        const Vec3d gathered = used > 0 ? sum / double(used) : Vec3d(0.0);
+        const Vec3d rho(scene.albedo().rgb(v)), e(scene.emission().rgb(v));
+        const Vec3d b = e + Vec3d(rho[0] * (direct[0] + gathered[0]),
+            rho[1] * (direct[1] + gathered[1]), rho[2] * (direct[2] + gathered[2]));
+        return Vec3f(b);
     }
 
     // First surface hit along the world ray (eye, unit dir) within [t0, t1]: its world distance
@@ -179,6 +247,10 @@ struct Renderer::Tracer
             // Where the gradient vanishes no direction is preferred: plain trilinear weights.
             n = nl > 0.0 ? n / nl : Vec3d(0.0);
             value = shade(p, Vec3f(n), -1);
+            if (mR.mGather) {
+                const int32_t v = nearestVoxel(p, Vec3f(n));
+                if (v >= 0) value = gatherAt(p, size_t(v), rayHash(eye, dir));
+            }
             return true;
         }
         int32_t hit = -1;
@@ -190,8 +262,39 @@ struct Renderer::Tracer
             });
         if (hit < 0) return false;
         const Vec3d p = ir.origin + ir.dir * tHit;
-        value = shade(p, scene.normal(size_t(hit)), hit);
+        value = mR.mGather ? gatherAt(p, size_t(hit), rayHash(eye, dir))
+                           : shade(p, scene.normal(size_t(hit)), hit);
         return true;
+    }
+
+    // A hash of a primary ray: the same pixel sample draws the same gather every time.
+    static uint64_t rayHash(const Vec3d& eye, const Vec3d& dir)
+    {
+        uint64_t h = 0x2545F4914F6CDD1Dull;
+        for (const double x : {eye[0], eye[1], eye[2], dir[0], dir[1], dir[2]}) {
+            uint64_t bits;
+            std::memcpy(&bits, &x, sizeof bits);
+            h = mixHash(h ^ bits);
+        }
+        return h;
+    }
+
+    // The surface voxel among the 2x2x2 around p nearest to it that faces along nHit (a level
+    // set's hit has no voxel of its own), or -1.
+    int32_t nearestVoxel(const Vec3d& p, const Vec3f& nHit)
+    {
+        const Vec3d fl(std::floor(p[0]), std::floor(p[1]), std::floor(p[2]));
+        const Coord base{int32_t(fl[0]), int32_t(fl[1]), int32_t(fl[2])};
+        int32_t best = -1;
+        double bestD = 1e300;
+        for (int d = 0; d < 8; ++d) {
+            const Coord c = base.offsetBy(d & 1, (d >> 1) & 1, (d >> 2) & 1);
+            const int32_t i = mSurface->getValue(c);
+            if (i < 0 || !(mR.mScene.normal(size_t(i)).dot(nHit) > 0.f)) continue;
+            const double dist = (c.asVec3d() - p).lengthSqr();
+            if (dist < bestD) { bestD = dist; best = i; }
+        }
+        return best;
     }
 
     // Radiosity at index-space point p of a surface whose normal there is nHit (see the header).
@@ -261,6 +364,7 @@ struct Renderer::Tracer
 
     const Renderer& mR;
     std::optional<Accessor> mSurface, mCloud;
+    std::optional<DirectLightSampler::Workspace> mDirect;   // the final gather's
     std::optional<LevelSetIntersector> mLevelSet;
     std::optional<openvdb::math::BoxStencil<openvdb::FloatGrid>> mStencil;
 };
@@ -279,6 +383,11 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
     if (options.samplesPerPixel < 1 || options.samplesPerPixel > 16) {
         OPENVDB_THROW(openvdb::ValueError, "samples per pixel must be in 1..16 (n gives n x n "
             "samples), got " << options.samplesPerPixel);
+    }
+    if (options.gather < 0 || options.gather > 65536 || options.directSamples < 1
+        || options.directSamples > 65536) {
+        OPENVDB_THROW(openvdb::ValueError, "gather rays must be in 0..65536 and direct-light "
+            "samples in 1..65536, got " << options.gather << " and " << options.directSamples);
     }
     if (!finite(options.background)) {
         OPENVDB_THROW(openvdb::ValueError, "background has a NaN or infinite value "
@@ -317,6 +426,7 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
         if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled("render set-up");
         mRadiosity = Attribute::sample(*radiosity, mScene.voxels(), names::kRadiosity,
             std::numeric_limits<float>::lowest());
+        if (options.gather > 0) mGather.reset(new Gather(mScene, mRadiosity, options));
         if (mScene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
             // The grid the scene was built from: identifyRoles picks it by type and class, and
             // another grid of the file may carry the same name (found by fuzz_scene: looking it

@@ -53,6 +53,15 @@ struct RenderOptions
     int samplesPerPixel = 1;
     SceneOptions scene;              ///< how to read the surface: the same as for the solve
     CloudOptions cloud;              ///< how to read the cloud: the same as for the solve
+    /// Final gather (surfaces): rays per pixel sample from the visible point, 0 for none. The
+    /// pixel then shows E + rho (D + G) at the point of the voxel's own plane the camera sees:
+    /// D the exact direct light there (DirectLight.h), G the mean reflected radiosity B - E of
+    /// what the gather's cosine-distributed rays hit (SurfaceRays.h). Smooth where the voxels'
+    /// values are not (ray effects of the sweeps, stairs of tilted walls); it needs the scene's
+    /// albedo and emission, which the solved file carries.
+    int gather = 0;
+    /// Shadow rays per pixel sample for the gather's direct light (>= 1).
+    int directSamples = 16;
     /// Name of the cloud's source grid J (float or Vec3f, mean radiance over directions, as the
     /// cloud solver writes it). Missing: the cloud only absorbs (see Image::warnings).
     std::string cloudSource = "mean_intensity";
@@ -143,6 +152,10 @@ private:
 
     bool mHasSurface = false, mHasCloud = false;
     Scene mScene;
+    // Final gather (RenderOptions::gather): emitters, rooms, the direct-light sampler and the
+    // reflected radiosity B - E per voxel.
+    struct Gather;
+    std::unique_ptr<Gather> mGather;
     Attribute mRadiosity;                    // per surface voxel, scene numbering
     openvdb::FloatGrid::Ptr mLevelSet;       // level-set scenes only (a shallow copy)
     std::unique_ptr<LevelSetShared> mLevelSetShared;
