@@ -46,7 +46,8 @@ struct SceneBuilder
     {
         voxels[{c.x(), c.y(), c.z()}] = {n, albedo, emission};
     }
-    Scene build() const
+    Scene build() const { return buildScene(grids()); }
+    openvdb::GridPtrVec grids() const
     {
         auto normal = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
         auto albedo = openvdb::FloatGrid::create(0.f);
@@ -60,7 +61,7 @@ struct SceneBuilder
             albedo->tree().setValue(c, v.albedo);
             emission->tree().setValue(c, v.emission);
         }
-        return buildScene(openvdb::GridPtrVec{normal, albedo, emission});
+        return openvdb::GridPtrVec{normal, albedo, emission};
     }
 };
 
@@ -446,22 +447,16 @@ TEST_F(DirectTest, EmissionAreaScalesPatchPowerAndIsChecked)
     EXPECT_DOUBLE_EQ(Emitters(plain).power(), 2.0 * 16);
 
     auto withArea = [&](openvdb::GridBase::Ptr area) {
-        openvdb::GridPtrVec grids;
-        const Scene s = b.build();   // for its grids' transform: rebuild them by hand
-        auto normal = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
-        auto emission = openvdb::FloatGrid::create(0.f);
-        normal->setName(kNormal);
-        emission->setName(kEmission);
-        for (size_t i = 0; i < s.size(); ++i) {
-            normal->tree().setValue(s.voxels().coord(i), s.normal(i));
-            emission->tree().setValue(s.voxels().coord(i), s.emission().grey(i));
-        }
+        openvdb::GridPtrVec grids = b.grids();
         area->setName(kEmissionArea);
-        return buildScene(openvdb::GridPtrVec{normal, emission, area});
+        grids.push_back(area);
+        return buildScene(grids);
     };
     // Each emitting voxel carries half a face: the patch keeps its outline, at half the power.
     auto half = openvdb::FloatGrid::create(0.f);
-    for (int i = 0; i < 4; ++i) for (int k = 0; k < 4; ++k) half->tree().setValue(Coord(i, 8, k), 0.5f);
+    for (int i = 0; i < 4; ++i) {
+        for (int k = 0; k < 4; ++k) half->tree().setValue(Coord(i, 8, k), 0.5f);
+    }
     const Scene scaled = withArea(half);
     ASSERT_TRUE(scaled.hasEmissionArea());
     const Emitters e(scaled);

@@ -5,7 +5,6 @@
 #include "vdbrad/VoxelMarch.h"
 
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -26,9 +25,8 @@ constexpr double kFarRadii = 32.0;
 constexpr size_t kPenumbra = 4;
 // Shadow rays start this far (voxels) in front of the receiver's centre: from the centre itself
 // a ray along a tilted wall runs behind its staircase neighbours' planes (each through its own
-// centre) and is stopped by its own surface ("shadow acne").
-// Half a voxel: on the Cornell box (res 128) the image error against Cycles is 7.2 % from the
-// centre, 6.3 % from 0.5, 1 or 1.5 voxels.
+// centre) and is stopped by its own surface ("shadow acne"). Half a voxel: on the Cornell box
+// (res 128) the image error against Cycles is 7.2 % from the centre, 6.3 % from 0.5, 1 or 1.5.
 constexpr double kLift = 0.5;
 // A receiver this close to a patch's plane (voxels) is on it: it sees none of it.
 constexpr double kOnPlane = 1e-9;
@@ -48,8 +46,7 @@ contour(const Vec3d& p, const Vec3d& n, const Vec3d* v, size_t m)
     return sum;
 }
 
-
-// Does the ray from voxel @a self's centre @a p to @a y on patch @a g arrive?
+// Does the ray from @a p (off voxel @a self) to @a y on patch @a g arrive?
 bool
 arrives(const Scene& scene, const Emitters& emitters, VoxelIndex::Accessor& acc,
     const openvdb::CoordBBox& box, uint32_t self, const Vec3d& p, const Vec3d& y, int32_t g)

@@ -156,8 +156,8 @@ public:
     size_t cacheBytes() const;
 
     /// @brief Make @a b (one value per voxel, in Scene order; B, emission included) the iterate
-    /// the next iterate() sweeps: a restart from a known state. The next step is a Jacobi one and an Anderson
-    /// history starts again.
+    /// the next iterate() sweeps: a restart from a known state. The next step is a Jacobi one
+    /// and an Anderson history starts again.
     /// @throw openvdb::ValueError if its size or kind (grey, RGB) does not match the scene, or
     ///        for progressive shooting (whose state is not B alone)
     void setRadiosity(const std::vector<float>& b);
