@@ -70,15 +70,17 @@ arrives(const Scene& scene, const Emitters& emitters, VoxelIndex::Accessor& acc,
 } // namespace
 
 bool
-usesExactDirect(DirectMode mode, const Scene& scene, const Emitters& emitters)
+usesExactDirect(DirectMode mode, const Scene& scene)
 {
-    if (emitters.empty()) return false;
-    switch (mode) {
-        case DirectMode::Sweep: return false;
-        case DirectMode::Exact: return true;
-        case DirectMode::Auto: break;
+    if (mode == DirectMode::Sweep || !scene.hasEmission()) return false;
+    if (mode == DirectMode::Exact) return true;
+    // Counted before any patch is built: a furnace (all emitters) builds none.
+    size_t emitting = 0;
+    for (size_t i = 0; i < scene.size(); ++i) {
+        const openvdb::Vec3f e = scene.emission().rgb(i);
+        emitting += (e[0] > 0.f || e[1] > 0.f || e[2] > 0.f) ? 1 : 0;
     }
-    return emitters.voxels() * 2 <= scene.size();
+    return emitting * 2 <= scene.size();
 }
 
 double

@@ -59,8 +59,9 @@ struct DirectLightOptions
     uint64_t seed = 1;
 };
 
-/// True if @a mode resolves to exact direct light for @a scene and its @a emitters.
-bool usesExactDirect(DirectMode mode, const Scene& scene, const Emitters& emitters);
+/// True if @a mode resolves to exact direct light for @a scene (something emits; Auto: at most
+/// half of its voxels).
+bool usesExactDirect(DirectMode mode, const Scene& scene);
 
 /// @brief The form factor from a point @a p with unit normal @a n to a planar polygon given by
 /// its closed loops (holes running the other way), clipped to the hemisphere of @a n.

@@ -408,11 +408,9 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
 
     // Exact direct light: the sweeps solve R = rho (D + gathered R) for R = B - E.
     impl.source = &scene.emission();
-    if (options.direct != DirectMode::Sweep && scene.hasEmission()) {
-        impl.emitters = Emitters(scene);
-        impl.exact = usesExactDirect(options.direct, scene, impl.emitters);
-    }
+    impl.exact = usesExactDirect(options.direct, scene);
     if (impl.exact) {
+        impl.emitters = Emitters(scene);
         impl.source = &impl.reflected;   // 0 until the first iterate() computes D
         impl.startFromSource = true;
     }
