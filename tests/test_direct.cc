@@ -7,6 +7,7 @@
 #include "vdbrad/DirectLight.h"
 #include "vdbrad/Emitters.h"
 #include "vdbrad/GridContract.h"
+#include "vdbrad/OutputGrids.h"
 #include "vdbrad/RadiositySolver.h"
 
 #include <gtest/gtest.h>
@@ -463,6 +464,10 @@ TEST_F(DirectTest, EmissionAreaScalesPatchPowerAndIsChecked)
     ASSERT_EQ(e.patches().size(), 1u);
     EXPECT_DOUBLE_EQ(e.patches()[0].area, 16.0);
     EXPECT_DOUBLE_EQ(e.power(), 2.0 * 16 * 0.5);
+    // `vdbrad surface` writes it back: the same power from the explicit scene.
+    const Scene again = buildScene(sceneToGrids(scaled));
+    ASSERT_TRUE(again.hasEmissionArea());
+    EXPECT_DOUBLE_EQ(Emitters(again).power(), e.power());
 
     auto negative = openvdb::FloatGrid::create(0.f);
     negative->tree().setValue(Coord(1, 8, 1), -1.f);

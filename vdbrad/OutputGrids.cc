@@ -106,6 +106,15 @@ sceneToGrids(const Scene& scene)
     };
     openvdb::GridPtrVec out{normal, attributeGrid(scene.albedo(), names::kAlbedo)};
     if (scene.hasEmission()) out.push_back(attributeGrid(scene.emission(), names::kEmission));
+    if (scene.hasEmissionArea()) {
+        // Back to world units^2 (the scene holds voxel faces).
+        const double face = scene.voxelSize() * scene.voxelSize();
+        std::vector<float> area(scene.size());
+        for (size_t i = 0; i < area.size(); ++i) {
+            area[i] = float(scene.emissionArea().grey(i) * face);
+        }
+        out.push_back(arrayToGrid(scene.voxels(), area, scene.transform(), names::kEmissionArea));
+    }
     return out;
 }
 

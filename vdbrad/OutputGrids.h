@@ -55,7 +55,8 @@ openvdb::GridBase::Ptr makeRadiosityGrid(const Scene& scene,
     const std::vector<openvdb::Vec3f>& radiosity, const SolveStats& stats);
 
 /// @brief The scene in explicit form: `normal` (world-space unit normals), `albedo` and, if the
-/// scene emits, `emission` grids, as the contract's form (b) reads them back.
+/// scene emits, `emission` grids (and `emission_area` if it has one), as the contract's form (b)
+/// reads them back.
 openvdb::GridPtrVec sceneToGrids(const Scene& scene);
 
 /// @brief @a input's grids and file metadata with @a results added; an input grid with the same
