@@ -343,7 +343,8 @@ plates(const BuildParams& in)
 }
 
 /// The lamp's emitting columns lo..hi (both axes): centres within r of the axis x = z = 0.5,
-/// compared in doubled index units (the axis is at doubled index n), so the test is exact.
+/// compared in doubled index units (the axis is at doubled index n), so the test is exact; at
+/// least the columns nearest the axis.
 void
 lampColumns(const std::string& scene, const Params& p, int& lo, int& hi)
 {
@@ -359,7 +360,11 @@ lampColumns(const std::string& scene, const Params& p, int& lo, int& hi)
             hi = std::max(hi, i);
         }
     }
-    if (hi < lo) fail(scene, "radius " + str(r) + " covers no voxel centre at this res");
+    // A lamp narrower than a voxel: the column (odd res) or two (even res) on the axis.
+    if (hi < lo) {
+        lo = (n - 1) / 2;
+        hi = n / 2;
+    }
 }
 
 openvdb::GridPtrVec

@@ -61,7 +61,7 @@ openvdb::GridPtrVec makePlates(const BuildParams&);
 /// @brief A small square lamp over a floor: a unit floor at y = 0 facing +y (albedo rho, default
 /// 0.5, no emission; res x res voxels) and, at height h (default 0.25), a square emitter facing
 /// -y (emission E, default 1, albedo 0): the columns whose centres lie within r (default 0.05)
-/// of the axis x = z = 0.5 in both x and z. Nothing else reflects, so the floor's radiosity is
+/// of the axis x = z = 0.5 in both x and z (at least the one or two nearest the axis). Nothing else reflects, so the floor's radiosity is
 /// exactly rho E F(point -> the emitter's cells): lampFloorRadiosity().
 openvdb::GridPtrVec makeLamp(const BuildParams&);
 

@@ -211,6 +211,28 @@ TEST_F(DirectTest, LampOverFloorIsExactAtDefaultSettings)
     }
 }
 
+// A lamp narrower than a voxel keeps the columns nearest the axis (found by fuzz_load, which
+// builds every scene at res 4 and 8), and its floor answer still holds.
+TEST_F(DirectTest, LampNarrowerThanAVoxelKeepsItsAxisColumns)
+{
+    for (const int res : {4, 5, 8}) {
+        grids::BuildParams p;
+        p.res = res;
+        const Scene scene = buildScene(grids::makeLamp(p));
+        const Emitters emitters(scene);
+        ASSERT_EQ(emitters.patches().size(), 1u);
+        EXPECT_EQ(emitters.voxels(), size_t(res % 2 ? 1 : 4)) << res;
+        RadiositySolver solver(scene, RadiosityOptions());
+        solver.solve();
+        for (size_t i = 0; i < scene.size(); ++i) {
+            const Coord v = scene.voxels().coord(i);
+            if (v.y() != 0) continue;
+            const double exact = grids::lampFloorRadiosity(p, v.x(), v.z());
+            EXPECT_NEAR(solver.grey()[i], exact, 2e-5 * exact) << res << " " << v;
+        }
+    }
+}
+
 // A black plate between the lamp and an albedo-1 floor. The repository's ray rule (shadow rays
 // from half a voxel above the receiver's centre) stops a ray
 // in a plate voxel's cube wherever it is behind that voxel's plane (what keeps rays out of the
