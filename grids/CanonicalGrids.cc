@@ -342,6 +342,13 @@ plates(const BuildParams& in)
     return s.finish(scene, vs, albedo);
 }
 
+/// The lamp's parameters with its defaults (albedo 0.5, emission 1, half-side 0.05, height 0.25).
+Params
+lampParams(const BuildParams& in)
+{
+    return resolve("lamp", in, 0.5f, 1.f, 0.05f, 0.25f, 0.f);
+}
+
 /// The lamp's emitting columns lo..hi (both axes): centres within r of the axis x = z = 0.5,
 /// compared in doubled index units (the axis is at doubled index n), so the test is exact; at
 /// least the columns nearest the axis.
@@ -371,7 +378,7 @@ openvdb::GridPtrVec
 lamp(const BuildParams& in)
 {
     const std::string scene = "lamp";
-    const Params p = resolve(scene, in, 0.5f, 1.f, 0.05f, 0.25f, 0.f);
+    const Params p = lampParams(in);
     const int n = p.res;
     const double vs = 1.0 / n;
     const int top = receiverLayer(scene, p.height, vs);
@@ -894,7 +901,7 @@ double
 lampFloorRadiosity(const BuildParams& in, int i, int k)
 {
     const std::string scene = "lamp";
-    const Params p = resolve(scene, in, 0.5f, 1.f, 0.05f, 0.25f, 0.f);
+    const Params p = lampParams(in);
     const int n = p.res;
     const double vs = 1.0 / n;
     const double h = receiverLayer(scene, p.height, vs) * vs;

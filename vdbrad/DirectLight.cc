@@ -77,8 +77,7 @@ usesExactDirect(DirectMode mode, const Scene& scene)
     // Counted before any patch is built: a furnace (all emitters) builds none.
     size_t emitting = 0;
     for (size_t i = 0; i < scene.size(); ++i) {
-        const openvdb::Vec3f e = scene.emission().rgb(i);
-        emitting += (e[0] > 0.f || e[1] > 0.f || e[2] > 0.f) ? 1 : 0;
+        emitting += Emitters::emits(scene.emission().rgb(i)) ? 1 : 0;
     }
     return emitting * 2 <= scene.size();
 }

@@ -16,8 +16,6 @@ namespace {
 // voxel): a flat light from a mesh or a level set's plane, not a curved lamp's neighbours.
 constexpr double kNormalTolerance = 1e-4;
 
-bool emits(const openvdb::Vec3f& e) { return e[0] > 0.f || e[1] > 0.f || e[2] > 0.f; }
-
 bool
 byColumn(const openvdb::Vec2i& a, const openvdb::Vec2i& b)
 {

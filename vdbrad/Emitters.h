@@ -58,7 +58,10 @@ public:
     static constexpr int32_t kNone = -1;
 
     Emitters() = default;
-    /// Group the emitting voxels of @a scene (any channel > 0) into patches.
+    /// True if an emission value emits (any channel > 0): the one rule for "emitting voxel".
+    static bool emits(const openvdb::Vec3f& e) { return e[0] > 0.f || e[1] > 0.f || e[2] > 0.f; }
+
+    /// Group the emitting voxels of @a scene (emits()) into patches.
     explicit Emitters(const Scene& scene);
 
     const std::vector<EmitterPatch>& patches() const { return mPatches; }
