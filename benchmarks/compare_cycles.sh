@@ -8,6 +8,7 @@
 #   bash benchmarks/compare_cycles.sh            (needs `blender`, Debian's 3.4; ~30 min on 2 cores)
 #   REF_SPP=4096 VDBRAD_RUNS="128:1000 256:3000" CYCLES_SPP="16 64" bash benchmarks/compare_cycles.sh
 #   REF1=a.exr REF2=b.exr ...                     (reuse two reference renders of different seeds)
+#   VDBRAD_MESH= ...                              (draw the voxels, not the mesh: voxel outlines)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 V=${VDBRAD:-build/vdbrad}
@@ -37,7 +38,8 @@ for run in ${VDBRAD_RUNS-64:1000 128:300 128:1000 128:3000 256:1000 256:3000 512
     img="$out/vdbrad_${res}_${dirs}_${direct}.exr"
     t=$(seconds sh -c "'$V' voxelize '$mesh' - --res $res --quiet \
       | '$V' solve - - --directions $dirs --tolerance 1e-4 --direct $direct --quiet \
-      | '$V' render - '$img' --res $size --camera $cam --exr-type float --quiet")
+      | '$V' render - '$img' --res $size --camera $cam --exr-type float --aa 4 --quiet \
+        ${VDBRAD_MESH-"--mesh '$mesh'"}")
     images+=("$img"); labels+=("vdbrad res $res, $dirs directions, direct $direct: $t s")
   done
 done

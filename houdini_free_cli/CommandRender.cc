@@ -6,6 +6,7 @@
 #include "vdbrad/vdbrad.h"
 
 #include <cstdio>
+#include <memory>
 
 namespace vdbrad {
 namespace cli {
@@ -57,6 +58,17 @@ runRender(const Arguments& a)
         if (isStdout(png)) throw UsageError("--png needs a file name");
         checkOutput(png, {in}, a.flag("overwrite"));
         if (png == out) throw UsageError("--png and the EXR output are the same file");
+    }
+
+    const std::string meshPath = a.getString("mesh");
+    if (!meshPath.empty()) {
+        if (isStdin(meshPath)) throw UsageError("--mesh must be a file");
+        // Mesh errors already start with the file name (and line): no label of our own.
+        try {
+            o.mesh = std::make_shared<const TriangleMesh>(readMesh(meshPath));
+        } catch (const std::exception& e) {
+            throw UserError(errorMessage(e));
+        }
     }
 
     const VdbFile file = readInput(in);

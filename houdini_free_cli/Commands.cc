@@ -272,6 +272,10 @@ commands()
                     .oneOf({"half", "float"}),
                 OptionSpec{"aa", OptionType::Int, "1", "3",
                     "antialiasing: N x N samples per pixel"}.within(1, 16),
+                {"mesh", OptionType::String, "", "room.obj",
+                    "surfaces: draw the mesh the scene was voxelised from (OBJ or PLY, as given "
+                    "to voxelize), shaded by the solved voxels around each point: exact "
+                    "outlines instead of voxel ones"},
                 OptionSpec{"gather", OptionType::Int, "0", "256",
                     "surfaces: final gather with this many rays per pixel sample from the point "
                     "the camera sees (E + albedo x (exact direct light + mean reflected radiosity "
@@ -289,7 +293,7 @@ commands()
                 kOverwrite, kQuiet}),
             {"vdbrad render lit.vdb lit.exr --png lit.png",
                 "vdbrad voxelize room.obj - | vdbrad solve - - | vdbrad render - room.exr "
-                "--res 1280x720"},
+                "--res 1280x720 --mesh room.obj"},
             runRender},
         {"help", "[COMMAND]", 0, 1, "list commands, or describe one",
             {{"markdown", OptionType::Flag, "", "", "print the command reference as Markdown"}},

@@ -7,8 +7,11 @@
 #include "vdbrad/DirectLight.h"
 #include "vdbrad/Emitters.h"
 #include "vdbrad/GridContract.h"
+#include "vdbrad/MeshTracer.h"
 #include "vdbrad/OutputGrids.h"
 #include "vdbrad/RadiositySolver.h"
+#include "vdbrad/SurfacePlanes.h"
+#include "vdbrad/Voxelizer.h"
 
 #include <gtest/gtest.h>
 #include <openvdb/openvdb.h>
@@ -26,6 +29,7 @@ using namespace vdbrad;
 using namespace vdbrad::names;
 using openvdb::Coord;
 using openvdb::Vec3d;
+using openvdb::Vec3f;
 
 namespace {
 
@@ -335,6 +339,169 @@ TEST_F(DirectTest, ShadowsMatchTheRayRulesVisibility)
             "value\n", samples, penumbra, sumPen / double(penumbra));
         EXPECT_LT(sumPen / double(penumbra), bound) << samples << " rays";
     }
+}
+
+// A tilted wall does not shadow itself: its voxels' centres form a staircase, but shadow rays
+// leave from and stop at each voxel's plane (SurfacePlanes.h), the same plane for the whole
+// wall. Nothing stands between the wall and the lamp, so every voxel facing it gets the exact
+// unoccluded value (the ratio estimate is exact where every ray arrives). With planes through
+// the centres, 23 %, 38 % and 67 % of the wall's voxels were in their own shadow at 17, 31 and
+// 45 degrees of tilt.
+TEST_F(DirectTest, TiltedWallDoesNotShadowItself)
+{
+    for (const double degrees : {17.0, 31.0, 45.0}) {
+        const double a = degrees * kPi / 180.0;
+        const Vec3d n(-std::sin(a), std::cos(a), 0.0);   // the wall's normal, up and to -x
+        const double half = 0.5 * (std::abs(n[0]) + std::abs(n[1]));
+        const int size = 40, lamp = 40;
+        SceneBuilder b;
+        for (int i = 0; i < size; ++i) {
+            for (int j = -size; j <= size; ++j) {
+                // The supercover of the plane n . x = 0: every voxel whose cube it meets.
+                if (std::abs(n.dot(Vec3d(i, j, 0))) > half + 1e-9) continue;
+                for (int k = 0; k < size; ++k) b.set(Coord(i, j, k), n, 0.5f, 0.f);
+            }
+        }
+        for (int i = 14; i <= 22; ++i) {
+            for (int k = 16; k <= 24; ++k) b.set(Coord(i, lamp, k), Vec3d(0, -1, 0), 0.f, 1.f);
+        }
+        const Scene scene = b.build();
+        const Emitters emitters(scene);
+        ASSERT_EQ(emitters.patches().size(), 1u);
+        const EmitterPatch& patch = emitters.patches()[0];
+
+        // The planes: all on the wall's own plane, to a fraction of a voxel.
+        const std::vector<float> offsets = surfacePlanes(scene).offset;
+        double worstPlane = 0.0, meanPlane = 0.0, meanCentre = 0.0;
+        size_t inner = 0;
+        for (size_t i = 0; i < scene.size(); ++i) {
+            const Coord c = scene.voxels().coord(i);
+            // Away from the wall's rim, where a voxel has all its neighbours.
+            if (c.y() == lamp || c.x() < 2 || c.x() > size - 3 || c.z() < 2 || c.z() > size - 3) {
+                continue;
+            }
+            const double off = std::abs(n.dot(c.asVec3d()) + offsets[i]);
+            worstPlane = std::max(worstPlane, off);
+            meanPlane += off;
+            meanCentre += std::abs(n.dot(c.asVec3d()));
+            ++inner;
+        }
+        meanPlane /= double(inner);
+        meanCentre /= double(inner);
+        std::printf("%.0f degrees: planes off the wall by %.3f voxel on average (centres: %.3f), "
+            "at most %.3f (centres: %.3f)\n", degrees, meanPlane, meanCentre, worstPlane, half);
+        EXPECT_LT(meanPlane, 0.25 * meanCentre) << degrees << " degrees";
+        EXPECT_LT(worstPlane, 0.3 * half) << degrees << " degrees";
+
+        const DirectIrradiance d = directIrradiance(scene, emitters);
+        size_t checked = 0, shadowed = 0;
+        for (size_t i = 0; i < scene.size(); ++i) {
+            const Coord c = scene.voxels().coord(i);
+            if (c.y() == lamp) continue;
+            const double full = patchFormFactor(c.asVec3d(), n, patch) * patch.exitance[0];
+            if (!(full > 1e-4)) continue;
+            ++checked;
+            if (std::abs(d.irradiance[i][0] - full) > 1e-5 * full) ++shadowed;
+        }
+        ASSERT_GT(checked, 1000u);
+        EXPECT_EQ(shadowed, 0u) << degrees << " degrees: " << shadowed << " of " << checked
+                                << " voxels shadow themselves";
+    }
+}
+
+// A rotated block on a floor, voxelised from its mesh, under a lamp in front of it: the block's
+// front face sees the whole lamp (nothing stands in front of it), so it must get the unoccluded
+// value to the last row under its top edge, whose voxels overhang the face (convex edges cut
+// the planes; without, 33 of its voxels lose light). The floor is checked against the mesh's own visibility (MeshTracer), away from
+// the shadow's edges: lit where the mesh sees the lamp, dark where the block hides it all.
+TEST_F(DirectTest, RotatedBlockIsNotShadowedByItsOwnEdges)
+{
+    const double a = 17.0 * kPi / 180.0;
+    auto place = [&](double x, double y, double z) {   // rotate about y, stand at (0.5, 0, 0.55)
+        return Vec3f(float(0.5 + std::cos(a) * x + std::sin(a) * z), float(y),
+            float(0.55 - std::sin(a) * x + std::cos(a) * z));
+    };
+    TriangleMesh mesh;
+    mesh.materials = {Material{"white", Vec3f(0.5f), Vec3f(0.f)},
+        Material{"lamp", Vec3f(0.f), Vec3f(1.f)}};
+    auto quad = [&](const Vec3f& p0, const Vec3f& p1, const Vec3f& p2, const Vec3f& p3, int m) {
+        const uint32_t b = uint32_t(mesh.points.size());
+        mesh.points.insert(mesh.points.end(), {p0, p1, p2, p3});
+        mesh.triangles.emplace_back(b, b + 1, b + 2);
+        mesh.triangles.emplace_back(b, b + 2, b + 3);
+        mesh.triangleMaterials.insert(mesh.triangleMaterials.end(), {m, m});
+    };
+    quad(Vec3f(0, 0, 0), Vec3f(0, 0, 1), Vec3f(1, 0, 1), Vec3f(1, 0, 0), 0);   // floor, up
+    quad(Vec3f(0.4f, 0.9f, 0.05f), Vec3f(0.6f, 0.9f, 0.05f), Vec3f(0.6f, 0.9f, 0.2f),
+        Vec3f(0.4f, 0.9f, 0.2f), 1);                                            // lamp, down
+    const double h = 0.15, top = 0.3;
+    const Vec3f c[8] = {place(-h, 0, -h), place(h, 0, -h), place(h, 0, h), place(-h, 0, h),
+        place(-h, top, -h), place(h, top, -h), place(h, top, h), place(-h, top, h)};
+    quad(c[4], c[7], c[6], c[5], 0);   // top (counter-clockwise from above)
+    quad(c[0], c[4], c[5], c[1], 0);   // front, towards -z
+    quad(c[1], c[5], c[6], c[2], 0);
+    quad(c[2], c[6], c[7], c[3], 0);
+    quad(c[3], c[7], c[4], c[0], 0);
+    VoxelizeOptions vo;
+    vo.resolution = 96;
+    const Scene scene = buildScene(voxelizeMesh(mesh, vo));
+    const Emitters emitters(scene);
+    const DirectIrradiance d = directIrradiance(scene, emitters);
+    const double vs = scene.transform().voxelSize()[0];
+    const Vec3d nFront = Vec3d(place(0, 0, -1)) - Vec3d(place(0, 0, 0));
+
+    const MeshTracer tracer(mesh, 4.0 * vs);
+    MeshTracer::Accessor acc = tracer.accessor();
+    // The share of the lamp the mesh lets a world point see, by an 8 x 8 grid on the lamp.
+    auto share = [&](const Vec3d& p) {
+        int seen = 0;
+        for (int i = 0; i < 8; ++i) {
+            for (int k = 0; k < 8; ++k) {
+                const Vec3d y(0.4 + 0.2 * (i + 0.5) / 8, 0.9, 0.05 + 0.15 * (k + 0.5) / 8);
+                const double r = (y - p).length();
+                MeshTracer::Hit hit;
+                if (!tracer.intersect(p, (y - p) / r, 1e-9, r - 1e-6, hit, acc)) ++seen;
+            }
+        }
+        return seen / 64.0;
+    };
+    size_t faces = 0, lit = 0, dark = 0;
+    for (size_t i = 0; i < scene.size(); ++i) {
+        if (emitters.patchOf(i) != Emitters::kNone) continue;
+        const Coord v = scene.voxels().coord(i);
+        const Vec3d n(scene.normal(i));
+        double full = 0.0;
+        for (const EmitterPatch& patch : emitters.patches()) {
+            full += patchFormFactor(v.asVec3d(), n, patch) * patch.exitance[0];
+        }
+        const double got = d.irradiance[i][0];
+        if (n.dot(nFront) > 0.99) {
+            ++faces;
+            EXPECT_NEAR(got, full, 1e-5 * full) << "front face voxel " << v;
+            continue;
+        }
+        if (v.y() != 0 || !(full > 0.0)) continue;
+        // The floor: decided where the mesh's answer is the same 2 voxels each way.
+        const Vec3d p = v.asVec3d() * vs + Vec3d(0, 1e-7, 0);
+        const double s = share(p);
+        if (s != 0.0 && s != 1.0) continue;
+        bool same = true;
+        for (const Vec3d& step : {Vec3d(2, 0, 0), Vec3d(-2, 0, 0), Vec3d(0, 0, 2),
+                 Vec3d(0, 0, -2)}) {
+            same = same && share(p + step * vs) == s;
+        }
+        if (!same) continue;
+        if (s == 1.0) {
+            ++lit;
+            EXPECT_NEAR(got, full, 1e-5 * full) << "lit floor voxel " << v;
+        } else {
+            ++dark;
+            EXPECT_EQ(got, 0.f) << "shadowed floor voxel " << v;
+        }
+    }
+    EXPECT_GT(faces, 500u);
+    EXPECT_GT(lit, 1000u);
+    EXPECT_GT(dark, 200u);
 }
 
 // A light outside a closed box lights none of the inside: shadow rays never cross a shell.

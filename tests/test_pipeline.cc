@@ -146,7 +146,7 @@ TEST_F(PipelineTest, CornellMeshChainShowsColourBleeding)
     const std::string mesh = std::string(VDBRAD_SOURCE_DIR) + "/samples/meshes/cornell_box.obj";
     const Result r = sh("vdbrad voxelize '" + mesh + "' - --res 48 --quiet | vdbrad solve - - "
         "--directions 300 --tolerance 1e-3 --quiet | tee lit.vdb | vdbrad render - box.exr "
-        "--res 160x120 --exr-type float --png box.png --quiet");
+        "--res 160x120 --exr-type float --png box.png --quiet --mesh '" + mesh + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_EQ(r.err, "");
     if (std::system("command -v exrheader > /dev/null") == 0) {
@@ -206,6 +206,7 @@ TEST_F(PipelineTest, RenderErrorsGiveOneLineAndKeepOutputs)
     ASSERT_EQ(r.status, 0) << r.err;
     writeText("out.exr", "keep");
     writeText("out.png", "keep");
+    writeText("far.obj", "v 5 0 0\nv 6 0 0\nv 5 1 0\nf 1 2 3\n");
     struct Case { std::string args, message; int status; };
     const std::vector<Case> cases = {
         {"missing.vdb out.exr", "missing.vdb", 1},
@@ -221,6 +222,9 @@ TEST_F(PipelineTest, RenderErrorsGiveOneLineAndKeepOutputs)
         {"lit.vdb out.exr --png -", "--png needs a file name", 2},
         {"lit.vdb out.exr --background 1,1", "--background needs 3", 2},
         {"lit.vdb nowhere/out.exr", "does not exist", 1},
+        {"lit.vdb out.exr --mesh missing.obj", "missing.obj: cannot open", 1},
+        {"lit.vdb out.exr --mesh -", "--mesh must be a file", 2},
+        {"lit.vdb out.exr --mesh far.obj", "is not within the surface's voxels", 1},
     };
     for (const Case& c : cases) {
         const bool png = c.args.find("--png") != std::string::npos;

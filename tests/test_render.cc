@@ -4,6 +4,7 @@
 // a homogeneous cloud, the default camera, EXR and PNG bytes, and the errors users meet.
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/ImageIO.h"
+#include "vdbrad/MeshTracer.h"
 #include "vdbrad/Renderer.h"
 #include "vdbrad/vdbrad.h"
 
@@ -19,6 +20,8 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <limits>
+#include <memory>
 #include <string>
 
 using namespace vdbrad;
@@ -179,6 +182,123 @@ TEST_F(RenderTest, FlatWallHeadOnShowsItsRadiosityAndItsProjectedArea)
         }
     }
     EXPECT_GT(partial, size_t(4.0 * s) - 8);   // the rim, four sides
+}
+
+// MeshTracer (render --mesh) against brute force: the nearest hit over all triangles, for rays
+// from outside and inside a cloud of random triangles, with bounded and unbounded ranges.
+TEST_F(RenderTest, MeshTracerFindsTheNearestTriangle)
+{
+    TriangleMesh mesh;
+    uint64_t state = 12345;
+    auto uniform = [&]() {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        return double(state >> 11) * (1.0 / 9007199254740992.0);
+    };
+    for (int t = 0; t < 1500; ++t) {
+        const Vec3d c(uniform(), uniform(), uniform());
+        const uint32_t base = uint32_t(mesh.points.size());
+        for (int k = 0; k < 3; ++k) {
+            // Sizes from a tenth of a cell to several cells.
+            const double r = 0.005 + 0.15 * uniform() * uniform();
+            mesh.points.push_back(Vec3f(c + Vec3d(uniform() - 0.5, uniform() - 0.5,
+                uniform() - 0.5) * (2.0 * r)));
+        }
+        mesh.triangles.push_back(openvdb::Vec3I(base, base + 1, base + 2));
+    }
+    mesh.triangles.push_back(openvdb::Vec3I(0, 0, 1));   // no area: left out
+    const MeshTracer tracer(mesh, 0.02);
+    EXPECT_EQ(tracer.triangleCount(), 1500u);
+    MeshTracer::Accessor acc = tracer.accessor();
+    size_t hits = 0;
+    for (int r = 0; r < 4000; ++r) {
+        const Vec3d eye = r % 2 ? Vec3d(uniform(), uniform(), uniform())
+                                : Vec3d(uniform() * 3 - 1, uniform() * 3 - 1, -1.0);
+        const Vec3d dir = Vec3d(uniform() - 0.5, uniform() - 0.5, uniform() - 0.2).unit();
+        const double t1 = r % 3 ? std::numeric_limits<double>::infinity() : 0.5 + uniform();
+        double best = t1;
+        int64_t want = -1;
+        for (size_t i = 0; i + 1 < mesh.triangles.size(); ++i) {
+            const Vec3d a(mesh.points[mesh.triangles[i][0]]);
+            const Vec3d e1 = Vec3d(mesh.points[mesh.triangles[i][1]]) - a;
+            const Vec3d e2 = Vec3d(mesh.points[mesh.triangles[i][2]]) - a;
+            // Cramer's rule for eye + t dir = a + u e1 + v e2.
+            const double det = -dir.dot(e1.cross(e2));
+            if (det == 0.0) continue;
+            const Vec3d s = eye - a;
+            const double t = s.dot(e1.cross(e2)) / det;
+            const double u = -dir.dot(s.cross(e2)) / det;
+            const double v = -dir.dot(e1.cross(s)) / det;
+            if (u >= 0 && v >= 0 && u + v <= 1 && t >= 0 && t <= best) {
+                best = t;
+                want = int64_t(i);
+            }
+        }
+        MeshTracer::Hit hit;
+        const bool got = tracer.intersect(eye, dir, 0.0, t1, hit, acc);
+        ASSERT_EQ(got, want >= 0) << "ray " << r;
+        if (!got) continue;
+        ++hits;
+        ASSERT_NEAR(hit.t, best, 1e-12) << "ray " << r;
+        EXPECT_EQ(int64_t(hit.triangle), want) << "ray " << r;
+        EXPECT_LT(hit.normal.dot(dir), 0.0);
+        EXPECT_NEAR(hit.normal.length(), 1.0, 1e-12);
+    }
+    EXPECT_GT(hits, 500u);   // 689 of the 4000 rays hit
+
+    EXPECT_THROW(MeshTracer(mesh, 0.0), openvdb::ValueError);
+    mesh.points[5] = Vec3f(std::nanf(""));
+    EXPECT_THROW(MeshTracer(mesh, 0.02), openvdb::ValueError);
+}
+
+// render --mesh: a mesh rectangle inside a wall of voxels is drawn with its exact outline (a
+// pixel shows the wall iff its ray meets the rectangle), shaded by the voxels around each hit.
+TEST_F(RenderTest, MeshOutlineIsExact)
+{
+    const double vs = 1.0 / 64.0, D = 2.5;
+    const openvdb::GridPtrVec grids = wall(vs, false, [](int) { return Vec3f(0.37f); });
+    // Corners off the voxel grid, a quarter voxel in front of the centres.
+    const double x0 = 10.3 * vs, x1 = 50.7 * vs, y0 = 5.2 * vs, y1 = 60.1 * vs, z = -0.25 * vs;
+    auto mesh = std::make_shared<TriangleMesh>();
+    mesh->points = {Vec3f(x0, y0, z), Vec3f(x1, y0, z), Vec3f(x1, y1, z), Vec3f(x0, y1, z)};
+    mesh->triangles = {openvdb::Vec3I(0, 1, 2), openvdb::Vec3I(0, 2, 3)};
+    RenderOptions o;
+    o.width = 64;
+    o.height = 48;
+    o.camera = headOn(vs, D);
+    o.mesh = mesh;
+    const Renderer renderer(grids, o);
+    const Image image = renderer.render();
+    size_t hits = 0;
+    for (int y = 0; y < o.height; ++y) {
+        for (int x = 0; x < o.width; ++x) {
+            const Vec3d q = onPlaneZ(renderer.primaryRay(x + 0.5, y + 0.5), z);
+            const double margin = std::min({q[0] - x0, x1 - q[0], q[1] - y0, y1 - q[1]});
+            if (std::abs(margin) < 1e-9) continue;
+            const float cov = image.coverage[size_t(y * o.width + x)];
+            ASSERT_EQ(cov == 1.f, margin > 0.0) << x << ", " << y;
+            if (cov == 1.f) {
+                ++hits;
+                ASSERT_NEAR(image.at(x, y)[0], 0.37f, 1e-6f);
+            }
+        }
+    }
+    EXPECT_GT(hits, 200u);
+
+    // A mesh that is not the scene's, and a mesh with nothing to show.
+    auto far = std::make_shared<TriangleMesh>(*mesh);
+    for (Vec3f& p : far->points) p += Vec3f(5.f, 0.f, 0.f);
+    o.mesh = far;
+    try {
+        renderImage(grids, o);
+        ADD_FAILURE() << "rendered a mesh far from the voxels";
+    } catch (const openvdb::ValueError& e) {
+        EXPECT_NE(std::string(e.what()).find("is not within the surface's voxels"),
+            std::string::npos) << e.what();
+    }
+    auto flat = std::make_shared<TriangleMesh>(*mesh);
+    flat->triangles = {openvdb::Vec3I(0, 1, 1)};
+    o.mesh = flat;
+    EXPECT_THROW(renderImage(grids, o), openvdb::ValueError);
 }
 
 TEST_F(RenderTest, RadiosityRampIsInterpolatedLinearlyWithoutSteps)

@@ -28,6 +28,7 @@
 
 #include "vdbrad/Emitters.h"
 #include "vdbrad/Scene.h"
+#include "vdbrad/SurfacePlanes.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
@@ -108,6 +109,7 @@ private:
     const std::vector<uint32_t>* mRegions;
     openvdb::CoordBBox mBox;
     std::vector<uint32_t> mPatchRegion;   // the room each patch faces
+    SurfacePlanes mPlanes;                // each voxel's plane
 };
 
 struct DirectIrradiance

@@ -3,6 +3,7 @@
 #include "vdbrad/DirectLight.h"
 #include "vdbrad/Emitters.h"
 #include "vdbrad/Enclosure.h"
+#include "vdbrad/MeshTracer.h"
 #include "vdbrad/SampleHash.h"
 #include "vdbrad/SurfaceRays.h"
 
@@ -146,6 +147,11 @@ struct Renderer::LevelSetShared
     LevelSetIntersector intersector;
 };
 
+struct Renderer::MeshShared
+{
+    MeshTracer tracer;
+};
+
 struct Renderer::Gather
 {
     Gather(const Scene& scene, const Attribute& radiosity, const RenderOptions& options)
@@ -180,7 +186,9 @@ struct Renderer::Tracer
     {
         if (r.mHasSurface) {
             mSurface.emplace(r.mScene.voxels().tree());
-            if (r.mLevelSet) {
+            if (r.mMesh) {
+                mMesh.emplace(r.mMesh->tracer.accessor());
+            } else if (r.mLevelSet) {
                 // Copies share the grid; each thread needs its own accessor inside.
                 mLevelSet.emplace(r.mLevelSetShared->intersector);
                 mStencil.emplace(*r.mLevelSet);
@@ -232,38 +240,46 @@ struct Renderer::Tracer
     {
         const Scene& scene = mR.mScene;
         const IndexRay ir = toIndex(scene.transform(), eye, dir);
-        if (mLevelSet) {
+        // A true surface (mesh or level set): the hit point p and its normal n, index space.
+        Vec3d p, n;
+        if (mMesh) {
+            MeshTracer::Hit hit;
+            if (!mR.mMesh->tracer.intersect(eye, dir, t0, t1, hit, *mMesh)) return false;
+            tHit = hit.t;
+            p = ir.origin + ir.dir * hit.t;
+            n = hit.normal;   // world space, as the scene's normals
+        } else if (mLevelSet) {
             const double len = ir.dir.length();   // index units per world unit
             const double it1 = t1 * len;
             const RayT iRay(ir.origin, ir.dir / len, t0 * len,
                 std::isfinite(it1) ? it1 : std::numeric_limits<double>::max());
-            Vec3d p;
             double iTime = 0.0;
             if (!mLevelSet->intersectsIS(iRay, p, iTime)) return false;
             tHit = iTime / len;
             mStencil->moveTo(p);
-            Vec3d n = mStencil->gradient(p);
+            n = mStencil->gradient(p);
             const double nl = n.length();
             // Where the gradient vanishes no direction is preferred: plain trilinear weights.
             n = nl > 0.0 ? n / nl : Vec3d(0.0);
-            value = shade(p, Vec3f(n), -1);
-            if (mR.mGather) {
-                const int32_t v = nearestVoxel(p, Vec3f(n));
-                if (v >= 0) value = gatherAt(p, size_t(v), rayHash(eye, dir));
-            }
+        } else {
+            int32_t hit = -1;
+            marchVoxels(*mSurface, mR.mSurfaceBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
+                [&](int32_t index, double tIn, double) {
+                    hit = index;
+                    tHit = tIn;
+                    return false;
+                });
+            if (hit < 0) return false;
+            p = ir.origin + ir.dir * tHit;
+            value = mR.mGather ? gatherAt(p, size_t(hit), rayHash(eye, dir))
+                               : shade(p, scene.normal(size_t(hit)), hit);
             return true;
         }
-        int32_t hit = -1;
-        marchVoxels(*mSurface, mR.mSurfaceBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
-            [&](int32_t index, double tIn, double) {
-                hit = index;
-                tHit = tIn;
-                return false;
-            });
-        if (hit < 0) return false;
-        const Vec3d p = ir.origin + ir.dir * tHit;
-        value = mR.mGather ? gatherAt(p, size_t(hit), rayHash(eye, dir))
-                           : shade(p, scene.normal(size_t(hit)), hit);
+        value = shade(p, Vec3f(n), -1);
+        if (mR.mGather) {
+            const int32_t v = nearestVoxel(p, Vec3f(n));
+            if (v >= 0) value = gatherAt(p, size_t(v), rayHash(eye, dir));
+        }
         return true;
     }
 
@@ -364,6 +380,7 @@ struct Renderer::Tracer
 
     const Renderer& mR;
     std::optional<Accessor> mSurface, mCloud;
+    std::optional<MeshTracer::Accessor> mMesh;
     std::optional<DirectLightSampler::Workspace> mDirect;   // the final gather's
     std::optional<LevelSetIntersector> mLevelSet;
     std::optional<openvdb::math::BoxStencil<openvdb::FloatGrid>> mStencil;
@@ -447,11 +464,15 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
         mHasSurface = true;
         mSurfaceBox = mScene.voxels().bbox();
         mWorldBounds = worldBoundsOf(mSurfaceBox, mScene.transform());
+        if (options.mesh) setMesh(*options.mesh);
     } else if (roles.surface) {
         mWarnings.push_back("surface '" + roles.surface->getName() + "' not shown: no radiosity "
             "grid (solve the scene first)");
     }
 
+    if (options.mesh && !mHasSurface) {
+        OPENVDB_THROW(openvdb::ValueError, "a mesh shows a solved surface, and the file has none");
+    }
     if (roles.density) {
         mCloud = buildCloud(grids, options.cloud, interrupt);
         if (options.cloudSource.empty()) {
@@ -501,6 +522,28 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
 }
 
 Renderer::~Renderer() = default;
+
+void
+Renderer::setMesh(const TriangleMesh& mesh)
+{
+    // Cells of four voxels: a few triangles each for meshes about as fine as the voxels.
+    const double voxel = mScene.transform().voxelSize()[0];
+    mMesh.reset(new MeshShared{MeshTracer(mesh, 4.0 * voxel)});
+    const openvdb::BBoxd& b = mMesh->tracer.bounds();
+    if (mMesh->tracer.triangleCount() == 0) {
+        OPENVDB_THROW(openvdb::ValueError, "the mesh has no triangle of non-zero area");
+    }
+    // The voxels' cubes hold every point of the mesh they were made from (to rounding).
+    const double slack = 0.25 * voxel;
+    const openvdb::BBoxd& v = mWorldBounds;
+    for (int k = 0; k < 3; ++k) {
+        if (b.min()[k] + slack < v.min()[k] || b.max()[k] - slack > v.max()[k]) {
+            OPENVDB_THROW(openvdb::ValueError, "the mesh (bounds " << b.min() << " - " << b.max()
+                << ") is not within the surface's voxels (" << v.min() << " - " << v.max()
+                << "): give the mesh the scene was voxelised from");
+        }
+    }
+}
 
 Renderer::RayT
 Renderer::primaryRay(double x, double y) const

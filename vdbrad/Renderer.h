@@ -6,6 +6,8 @@
 //     [ijk - 0.5, ijk + 0.5] (index space) the ray enters, found by a voxel DDA that jumps over
 //     the empty nodes of the voxel index tree; for level-set scenes the level set's zero crossing
 //     (tools::LevelSetRayIntersector), whose silhouettes are smooth rather than voxel steps;
+//     given the mesh the scene was voxelised from (RenderOptions::mesh), the mesh's own
+//     triangles (MeshTracer.h), whose outlines are exact;
 //   - its radiosity, interpolated smoothly across neighbouring surface voxels, as the thesis'
 //     Voxelizator did: at the hit point p the surface voxels among the 2x2x2 voxel centres around
 //     p are blended with trilinear weights times max(0, n_i . n_hit) and renormalised. The normal
@@ -24,6 +26,7 @@
 #pragma once
 
 #include "vdbrad/Cloud.h"
+#include "vdbrad/Mesh.h"
 #include "vdbrad/Scene.h"
 
 #include <openvdb/openvdb.h>
@@ -62,6 +65,11 @@ struct RenderOptions
     int gather = 0;
     /// Shadow rays per pixel sample for the gather's direct light (>= 1).
     int directSamples = 16;
+    /// The mesh the surface was voxelised from (world units, as `vdbrad voxelize` read it), or
+    /// none. Rays then find the mesh's triangles instead of the voxels, so outlines are exact
+    /// rather than up to a voxel out; what a hit shows is still the voxels' radiosity around it
+    /// (or the gather from it). The mesh must lie within the surface voxels' bounds.
+    std::shared_ptr<const TriangleMesh> mesh;
     /// Name of the cloud's source grid J (float or Vec3f, mean radiance over directions, as the
     /// cloud solver writes it). Missing: the cloud only absorbs (see Image::warnings).
     std::string cloudSource = "mean_intensity";
@@ -107,8 +115,9 @@ public:
 
     /// @brief Read the surface (with its `radiosity` grid) and the cloud of @a grids.
     /// @throw openvdb::ValueError bad options or camera, NaN values, no `radiosity` grid and no
-    ///        cloud ("solve the scene first"), or radiosity voxels that differ from the scene's
-    ///        surface voxels (the --surface/--separation of the solve must be used again)
+    ///        cloud ("solve the scene first"), radiosity voxels that differ from the scene's
+    ///        surface voxels (the --surface/--separation of the solve must be used again), or a
+    ///        mesh outside the surface's bounds (not the mesh the scene was made from)
     /// @throw openvdb::TypeError  `radiosity` or the cloud source neither float nor vec3s
     /// @throw openvdb::KeyError   a `radiosity` grid but no surface to put it on
     /// @throw vdbrad::Cancelled   if @a interrupt asks to stop while the scene is read
@@ -141,8 +150,11 @@ public:
     Image render(openvdb::util::NullInterrupter* interrupt = nullptr) const;
 
 private:
+    void setMesh(const TriangleMesh& mesh);
+
     struct Tracer;          // per-thread state: accessors, the level-set intersector
     struct LevelSetShared;  // the intersector every Tracer copies (keeps its header out of ours)
+    struct MeshShared;      // RenderOptions::mesh binned for tracing
 
     RenderOptions mOptions;
     Camera mCamera;
@@ -159,6 +171,7 @@ private:
     Attribute mRadiosity;                    // per surface voxel, scene numbering
     openvdb::FloatGrid::Ptr mLevelSet;       // level-set scenes only (a shallow copy)
     std::unique_ptr<LevelSetShared> mLevelSetShared;
+    std::unique_ptr<MeshShared> mMesh;
     Cloud mCloud;
     Attribute mSource;                       // omega0 J per cloud voxel; Uniform 0: absorb only
     bool mCloudEmits = false;                // mSource is not zero everywhere
