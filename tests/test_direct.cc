@@ -371,7 +371,7 @@ TEST_F(DirectTest, TiltedWallDoesNotShadowItself)
         const EmitterPatch& patch = emitters.patches()[0];
 
         // The planes: all on the wall's own plane, to a fraction of a voxel.
-        const std::vector<float> offsets = surfacePlanes(scene).offset;
+        const SurfacePlanes planes(scene);
         double worstPlane = 0.0, meanPlane = 0.0, meanCentre = 0.0;
         size_t inner = 0;
         for (size_t i = 0; i < scene.size(); ++i) {
@@ -380,7 +380,7 @@ TEST_F(DirectTest, TiltedWallDoesNotShadowItself)
             if (c.y() == lamp || c.x() < 2 || c.x() > size - 3 || c.z() < 2 || c.z() > size - 3) {
                 continue;
             }
-            const double off = std::abs(n.dot(c.asVec3d()) + offsets[i]);
+            const double off = std::abs(n.dot(c.asVec3d()) + planes.offset(i));
             worstPlane = std::max(worstPlane, off);
             meanPlane += off;
             meanCentre += std::abs(n.dot(c.asVec3d()));

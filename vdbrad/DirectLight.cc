@@ -24,10 +24,6 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kFarRadii = 32.0;
 // Where a voxel's first rays disagree, it is cast this many times as many (BENCHMARKS.md).
 constexpr size_t kPenumbra = 4;
-// Shadow rays start this far (voxels) in front of the receiver's plane (SurfacePlanes.h), where
-// no neighbour of the same wall stands: from the plane itself rounding decides whether a ray
-// grazing a flat wall is stopped by it ("shadow acne").
-constexpr double kLift = 0.5;
 // A receiver this close to a patch's plane (voxels) is on it: it sees none of it.
 constexpr double kOnPlane = 1e-9;
 
@@ -46,47 +42,11 @@ contour(const Vec3d& p, const Vec3d& n, const Vec3d* v, size_t m)
     return sum;
 }
 
-// Is the point @a x of voxel @a j's plane beyond a convex edge of its wall? At a block's edge the
-// voxels of each face overhang the other face by up to ||n||_1, and their planes with them; the
-// real surface stops at the edge, behind the other face's plane. So a point of j's plane in front
-// of the plane of a neighbour k of another wall is off the surface when the two walls make a
-// convex edge: each runs away behind the other's plane (SurfacePlanes::spread). A block's face
-// on a floor runs up, in front of the floor's plane: that concave edge cuts nothing. Without
-// this the rotated tall block of the Cornell box lost up to 18 % of its direct light over its top
-// ten rows to its top face's overhang, and every block cast its shadows wider.
+// Does the ray from @a p (off voxel @a self) to @a y on patch @a g arrive? Voxels stop it by
+// the surface rule (SurfacePlanes::stops).
 bool
-beyondConvexEdge(const Scene& scene, const SurfacePlanes& planes, VoxelIndex::Accessor& acc,
-    size_t j, const Vec3d& x)
-{
-    // Each wall's spread at its edge is about a voxel long: a third of one is a clear direction.
-    constexpr double kRuns = 0.3;
-    const openvdb::Coord cj = scene.voxels().coord(j);
-    const Vec3d nj(scene.normal(j)), sj(planes.spread[j]);
-    for (int dx = -1; dx <= 1; ++dx) {
-        for (int dy = -1; dy <= 1; ++dy) {
-            for (int dz = -1; dz <= 1; ++dz) {
-                const int32_t k = acc.getValue(cj.offsetBy(dx, dy, dz));
-                if (k < 0 || size_t(k) == j) continue;
-                const Vec3d nk(scene.normal(size_t(k)));
-                if (nk.dot(nj) >= kSameWall || !(nk.dot(sj) < -kRuns)
-                    || !(nj.dot(Vec3d(planes.spread[k])) < -kRuns)) {
-                    continue;
-                }
-                const Vec3d onK = scene.voxels().coord(size_t(k)).asVec3d()
-                    + nk * planes.offset[k];
-                if (nk.dot(x - onK) > 0.0) return true;
-            }
-        }
-    }
-    return false;
-}
-
-// Does the ray from @a p (off voxel @a self) to @a y on patch @a g arrive? Voxels stop it at
-// their planes (SurfacePlanes.h) up to the convex edges of their walls.
-bool
-arrives(const Scene& scene, const Emitters& emitters, const SurfacePlanes& planes,
-    VoxelIndex::Accessor& acc, const openvdb::CoordBBox& box, uint32_t self, const Vec3d& p,
-    const Vec3d& y, int32_t g)
+arrives(const Emitters& emitters, const SurfacePlanes& planes, VoxelIndex::Accessor& acc,
+    const openvdb::CoordBBox& box, uint32_t self, const Vec3d& p, const Vec3d& y, int32_t g)
 {
     const Vec3d d = y - p;
     bool arrived = true;
@@ -94,17 +54,12 @@ arrives(const Scene& scene, const Emitters& emitters, const SurfacePlanes& plane
             double tOut) {
         if (uint32_t(index) == self) return true;
         if (emitters.patchOf(size_t(index)) == g) return false;   // reached the patch
-        const Vec3d n(scene.normal(size_t(index)));
-        const Vec3d c =
-            scene.voxels().coord(size_t(index)).asVec3d() + n * planes.offset[size_t(index)];
-        if (!crossesVoxelSurface(p, d, tIn, tOut, c, n)) return true;
-        // Where the ray is first behind the plane, and whether the plane is real there. (The
-        // march's accessor: its lookups stay exact whatever it cached last.)
-        const double s0 = n.dot(p + d * tIn - c);
-        const double t = s0 < 0.0 ? tIn : tIn + s0 / -n.dot(d);
-        if (beyondConvexEdge(scene, planes, acc, size_t(index), p + d * t)) return true;
-        arrived = false;
-        return false;
+        // The march's accessor: its lookups stay exact whatever the rule cached last.
+        if (planes.stops(size_t(index), p, d, tIn, tOut, acc)) {
+            arrived = false;
+            return false;
+        }
+        return true;
     });
     return arrived;
 }
@@ -177,7 +132,7 @@ DirectLightSampler::DirectLightSampler(const Scene& scene, const Emitters& emitt
     const DirectLightOptions& options, const std::vector<uint32_t>* regions)
     : mScene(scene), mEmitters(emitters), mOptions(options), mRegions(regions)
     , mBox(scene.voxels().bbox())
-    , mPlanes(surfacePlanes(scene))
+    , mPlanes(scene)
 {
     if (options.samples < 1) {
         OPENVDB_THROW(openvdb::ValueError, "direct-light samples must be >= 1, got "
@@ -237,7 +192,7 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
     // per voxel; a point off the patch weighs nothing. @a mixed: some ray arrived and
     // some did not (a penumbra).
     const double shiftU = unitHash(mixHash(h + 1)), shiftV = unitHash(mixHash(h + 2));
-    const Vec3d origin = p + nx * (kLift + double(mPlanes.offset[self]));
+    const Vec3d origin = mPlanes.rayOrigin(self, p);
     auto estimate = [&](size_t count, bool& mixed) {
         double allA = 0.0, allAV = 0.0;
         size_t at = 0, k = 0;
@@ -280,8 +235,7 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
             ++ws.rays;
             a += weight;
             allA += weight;
-            if (arrives(mScene, mEmitters, mPlanes, ws.acc, mBox, uint32_t(self), origin, y,
-                    g)) {
+            if (arrives(mEmitters, mPlanes, ws.acc, mBox, uint32_t(self), origin, y, g)) {
                 av += weight;
                 allAV += weight;
                 anySeen = true;

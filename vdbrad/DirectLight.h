@@ -96,6 +96,9 @@ public:
         uint64_t rays = 0, factors = 0;
     };
 
+    /// The voxels' planes and the surface rule the shadow rays follow.
+    const SurfacePlanes& planes() const { return mPlanes; }
+
     /// @brief Direct irradiance (per channel) at index-space point @a p with unit normal @a n
     /// on voxel @a self (its own patch and its own cube do not count), from the sample
     /// sequence of hash @a h.
@@ -109,7 +112,7 @@ private:
     const std::vector<uint32_t>* mRegions;
     openvdb::CoordBBox mBox;
     std::vector<uint32_t> mPatchRegion;   // the room each patch faces
-    SurfacePlanes mPlanes;                // each voxel's plane
+    SurfacePlanes mPlanes;                // each voxel's plane, the surface rule
 };
 
 struct DirectIrradiance

@@ -2,14 +2,16 @@
 // per-voxel standard error. The reference for the direction set's angular error: it shares
 // neither directions nor digital lines with the line-partition solver.
 //
-// The voxelised surface: voxel v is the plane through its centre c_v with normal n_v, clipped to
-// its cube. A ray that crosses that plane inside the cube, or runs behind it there (it slipped
-// through a digitisation crack between two tilted patches), hits v: v's front (d . n_v < 0)
-// shows B(v), its back is black. A ray that crosses a surface voxel's cube in front of its
-// plane passes (the neighbours of a flat wall, at grazing angles). A 26-connected shell stops
-// every ray this way: rays traverse cubes 6-connectedly. Leaving the scene's box is the sky (0).
+// The voxelised surface: voxel v is its plane with normal n_v (SurfacePlanes.h: the plane of its
+// wall, not of its centre, so that a tilted wall's staircase does not shadow itself), clipped to
+// its cube and to the convex edges of its wall. A ray that crosses that plane inside the cube,
+// or runs behind it there (it slipped through a digitisation crack between two tilted patches),
+// hits v: v's front (d . n_v < 0) shows B(v), its back is black. A ray that crosses a surface
+// voxel's cube in front of its plane passes (the neighbours of a flat wall, at grazing angles).
+// A 26-connected shell stops every ray this way: rays traverse cubes 6-connectedly. Leaving the
+// scene's box is the sky (0). The direct light's shadow rays follow the same rule.
 //
-// Estimator: S rays per voxel from its centre, cosine-distributed about n_x (stratified in
+// Estimator: S rays per voxel from half a voxel in front of its plane, cosine-distributed about n_x (stratified in
 // cos^2 theta, golden-ratio sequence in phi, per-voxel random offsets from a counter-based hash,
 // so results do not depend on the thread count). Their hits are found once; then Jacobi
 // iterations B(x) = E(x) + rho(x) (1/S) sum_s B(hit_s) until the relative residual is below the
@@ -38,6 +40,7 @@
 #include "vdbrad/FixedPointIteration.h"
 #include "vdbrad/OutputGrids.h"
 #include "vdbrad/Scene.h"
+#include "vdbrad/SurfacePlanes.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
@@ -128,6 +131,7 @@ private:
 
     const Scene& mScene;
     MonteCarloOptions mOptions;
+    SurfacePlanes mPlanes;
     std::vector<uint32_t> mHits;
     std::vector<char> mClosed;   // per voxel: faces a closed cavity (Enclosure.h)
     std::vector<float> mGrey, mGreyError;

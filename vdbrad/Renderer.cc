@@ -201,25 +201,27 @@ struct Renderer::Tracer
     }
 
     // The final gather at index-space point p seen on voxel v (RenderOptions::gather): the
-    // point moved onto v's plane (inside its cube), E + rho (D + mean reflected radiosity of
-    // what cosine rays from half a voxel above it hit), the sample sequences hashed from @a h.
+    // point moved onto v's plane (SurfacePlanes.h; inside its cube), E + rho (D + mean reflected
+    // radiosity of what cosine rays from half a voxel above it hit), the sample sequences hashed
+    // from @a h.
     Vec3f gatherAt(const Vec3d& p, size_t v, uint64_t h)
     {
         const Scene& scene = mR.mScene;
         const Gather& g = *mR.mGather;
+        const SurfacePlanes& planes = g.sampler.planes();
         const Vec3d c = scene.voxels().coord(v).asVec3d();
         const Vec3d n(scene.normal(v));
-        Vec3d q = p - n * (p - c).dot(n);
+        Vec3d q = p - n * (p - planes.point(v)).dot(n);
         for (int k = 0; k < 3; ++k) q[k] = std::clamp(q[k], c[k] - 0.5, c[k] + 0.5);
         const Vec3d direct = g.sampler.at(q, n, v, mixHash(h), *mDirect);
         const size_t N = size_t(mR.mOptions.gather);
         const CosineRays rays(scene.normal(v), mixHash(h + 1), N);
         const bool closed = g.regions.region.empty() ? false : g.regions.region[v] != 0;
-        const Vec3d origin = q + n * 0.5;   // as shadow rays: off the staircase of tilted walls
+        const Vec3d origin = planes.rayOrigin(v, q);   // as shadow rays
         Vec3d sum(0.0);
         size_t used = 0;
         for (size_t s = 0; s < N; ++s) {
-            const uint32_t hit = traceSurface(scene, *mSurface, g.box, uint32_t(v), origin,
+            const uint32_t hit = traceSurface(scene, planes, *mSurface, g.box, uint32_t(v), origin,
                 rays(s));
             // A closed room's voxel leaving through its own cube: a digitisation crack.
             if (hit == kRaySky && closed) continue;

@@ -1,14 +1,16 @@
 // SurfaceRays: continuous rays against the voxelised surface, as the Monte Carlo reference and
 // the renderer's final gather cast them.
 //
-// The voxelised surface: voxel v is the plane through its centre with normal n_v, clipped to its
-// cube (VoxelMarch.h, crossesVoxelSurface). A ray hits the first voxel whose plane it crosses
-// inside the cube or runs behind there; v's front (d . n_v < 0) shows B(v), its back is black;
-// leaving the scene's box is the sky. Directions are cosine-distributed about a normal.
+// The voxelised surface: voxel v is its plane with normal n_v, clipped to its cube and to the
+// convex edges of its wall (SurfacePlanes.h). A ray hits the first voxel whose surface it meets;
+// v's front (d . n_v < 0) shows B(v), its back is black; leaving the scene's box is the sky.
+// Rays leave a voxel kRayLift in front of its plane (SurfacePlanes::rayOrigin). Directions are
+// cosine-distributed about a normal.
 #pragma once
 
 #include "vdbrad/SampleHash.h"
 #include "vdbrad/Scene.h"
+#include "vdbrad/SurfacePlanes.h"
 #include "vdbrad/VoxelMarch.h"
 
 #include <openvdb/openvdb.h>
@@ -25,8 +27,9 @@ constexpr uint32_t kRayBack = 0xfffffffeu;   ///< the ray hits a voxel's back
 /// What the ray @a origin + t @a d (index space, t > 0) from voxel @a self hits: a voxel index,
 /// kRaySky or kRayBack. @a self's own cube never stops it.
 inline uint32_t
-traceSurface(const Scene& scene, VoxelIndex::Accessor& acc, const openvdb::CoordBBox& box,
-    uint32_t self, const openvdb::Vec3d& origin, const openvdb::Vec3d& d)
+traceSurface(const Scene& scene, const SurfacePlanes& planes, VoxelIndex::Accessor& acc,
+    const openvdb::CoordBBox& box, uint32_t self, const openvdb::Vec3d& origin,
+    const openvdb::Vec3d& d)
 {
     using openvdb::Vec3d;
     uint32_t hit = kRaySky;
@@ -34,13 +37,11 @@ traceSurface(const Scene& scene, VoxelIndex::Accessor& acc, const openvdb::Coord
     marchVoxels(acc, box, origin + Vec3d(0.5), d, 0.0, std::numeric_limits<double>::infinity(),
         [&](int32_t index, double tIn, double tOut) {
             if (uint32_t(index) == self) return true;
-            const Vec3d n(scene.normal(size_t(index)));
-            const Vec3d c = scene.voxels().coord(size_t(index)).asVec3d();
-            if (crossesVoxelSurface(origin, d, tIn, tOut, c, n)) {
-                hit = d.dot(n) < 0.0 ? uint32_t(index) : kRayBack;
+            if (planes.stops(size_t(index), origin, d, tIn, tOut, acc)) {
+                hit = d.dot(Vec3d(scene.normal(size_t(index)))) < 0.0 ? uint32_t(index) : kRayBack;
                 return false;
             }
-            return true;   // crosses the cube in front of the plane: passes
+            return true;   // crosses the cube in front of the plane, or beyond an edge: passes
         });
     return hit;
 }

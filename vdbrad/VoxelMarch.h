@@ -92,11 +92,10 @@ marchVoxels(VoxelIndex::Accessor& acc, const openvdb::CoordBBox& box, const open
     }
 }
 
-/// The surface rule of a ray through surface voxels (the Monte Carlo reference, the direct
-/// light's shadow rays): voxel v is the plane through its centre @a c with normal @a n clipped
-/// to its cube, and the ray o + t d, crossing the cube for t in [tIn, tOut], meets it iff it
-/// crosses that plane there or runs behind it (it slipped through a crack between tilted
-/// patches). One that stays in front passes (a flat wall's neighbours, at grazing angles).
+/// Does the ray o + t d, crossing a cube for t in [tIn, tOut], cross the plane through @a c with
+/// normal @a n there, or run behind it (it slipped through a crack between tilted patches)? One
+/// that stays in front passes (a flat wall's neighbours, at grazing angles). The first test of
+/// the surface rule (SurfacePlanes::stops), which puts @a c on the voxel's wall plane.
 inline bool
 crossesVoxelSurface(const openvdb::Vec3d& o, const openvdb::Vec3d& d, double tIn, double tOut,
     const openvdb::Vec3d& c, const openvdb::Vec3d& n)
