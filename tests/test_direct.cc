@@ -412,8 +412,9 @@ TEST_F(DirectTest, TiltedWallDoesNotShadowItself)
 // A rotated block on a floor, voxelised from its mesh, under a lamp in front of it: the block's
 // front face sees the whole lamp (nothing stands in front of it), so it must get the unoccluded
 // value to the last row under its top edge, whose voxels overhang the face (convex edges cut
-// the planes; without, 33 of its voxels lose light). The floor is checked against the mesh's own visibility (MeshTracer), away from
-// the shadow's edges: lit where the mesh sees the lamp, dark where the block hides it all.
+// the planes; without, 33 of its voxels lose light). The floor is checked against the mesh's
+// own visibility (MeshTracer), away from the shadow's edges: lit where the mesh sees the lamp,
+// dark where the block hides it all.
 TEST_F(DirectTest, RotatedBlockIsNotShadowedByItsOwnEdges)
 {
     const double a = 17.0 * kPi / 180.0;

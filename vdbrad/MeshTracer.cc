@@ -113,31 +113,32 @@ MeshTracer::intersect(const Vec3d& eye, const Vec3d& dir, double t0, double t1, 
     double best = t1;
     int64_t found = -1;
     const double inv = 1.0 / mCell;
-    marchVoxels(acc, mCellBox, eye * inv, dir * inv, t0, t1, [&](int32_t cell, double, double tOut) {
-        for (uint32_t k = mBegin[size_t(cell)]; k < mBegin[size_t(cell) + 1]; ++k) {
-            // Moller-Trumbore, closed triangle, either side.
-            const Triangle& tri = mTriangles[mList[k]];
-            const Vec3d p = dir.cross(tri.ac);
-            const double det = tri.ab.dot(p);
-            if (det == 0.0) continue;   // the ray runs in the triangle's plane
-            const double id = 1.0 / det;
-            const Vec3d s = eye - tri.a;
-            const double u = s.dot(p) * id;
-            if (!(u >= 0.0 && u <= 1.0)) continue;
-            const Vec3d q = s.cross(tri.ab);
-            const double v = dir.dot(q) * id;
-            if (!(v >= 0.0 && u + v <= 1.0)) continue;
-            const double t = tri.ac.dot(q) * id;
-            if (t >= t0 && t <= best) {
-                // Equal distances (a shared edge): the lower triangle index, as sorted.
-                if (t == best && found >= 0) continue;
-                best = t;
-                found = int64_t(mList[k]);
+    marchVoxels(acc, mCellBox, eye * inv, dir * inv, t0, t1,
+        [&](int32_t cell, double, double tOut) {
+            for (uint32_t k = mBegin[size_t(cell)]; k < mBegin[size_t(cell) + 1]; ++k) {
+                // Moller-Trumbore, closed triangle, either side.
+                const Triangle& tri = mTriangles[mList[k]];
+                const Vec3d p = dir.cross(tri.ac);
+                const double det = tri.ab.dot(p);
+                if (det == 0.0) continue;   // the ray runs in the triangle's plane
+                const double id = 1.0 / det;
+                const Vec3d s = eye - tri.a;
+                const double u = s.dot(p) * id;
+                if (!(u >= 0.0 && u <= 1.0)) continue;
+                const Vec3d q = s.cross(tri.ab);
+                const double v = dir.dot(q) * id;
+                if (!(v >= 0.0 && u + v <= 1.0)) continue;
+                const double t = tri.ac.dot(q) * id;
+                if (t >= t0 && t <= best) {
+                    // Equal distances (a shared edge): the lower triangle index, as sorted.
+                    if (t == best && found >= 0) continue;
+                    best = t;
+                    found = int64_t(mList[k]);
+                }
             }
-        }
-        // A hit beyond this cell may still be beaten by one in the next cells.
-        return !(found >= 0 && best <= tOut);
-    });
+            // A hit beyond this cell may still be beaten by one in the next cells.
+            return !(found >= 0 && best <= tOut);
+        });
     if (found < 0) return false;
     const Triangle& tri = mTriangles[size_t(found)];
     Vec3d n = tri.ab.cross(tri.ac).unit();

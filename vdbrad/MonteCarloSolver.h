@@ -11,9 +11,10 @@
 // A 26-connected shell stops every ray this way: rays traverse cubes 6-connectedly. Leaving the
 // scene's box is the sky (0). The direct light's shadow rays follow the same rule.
 //
-// Estimator: S rays per voxel from half a voxel in front of its plane, cosine-distributed about n_x (stratified in
-// cos^2 theta, golden-ratio sequence in phi, per-voxel random offsets from a counter-based hash,
-// so results do not depend on the thread count). Their hits are found once; then Jacobi
+// Estimator: S rays per voxel from 0.01 voxel in front of its plane (the estimate is the
+// irradiance where they start), cosine-distributed about n_x (stratified in cos^2 theta,
+// golden-ratio sequence in phi, per-voxel random offsets from a counter-based hash, so results
+// do not depend on the thread count). Their hits are found once; then Jacobi
 // iterations B(x) = E(x) + rho(x) (1/S) sum_s B(hit_s) until the relative residual is below the
 // tolerance. For fixed rays this is the radiosity of the sampled scene; as S grows it converges
 // to the voxelised scene's radiosity. A voxel facing a closed cavity (Enclosure.h) averages over

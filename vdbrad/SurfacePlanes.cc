@@ -30,7 +30,9 @@ SurfacePlanes::SurfacePlanes(const Scene& scene)
     // a ceiling (the Cornell mesh's) must not take the ceiling's plane, a voxel behind its own.
     std::vector<char> emits(scene.size(), 0);
     if (scene.hasEmission()) {
-        for (size_t i = 0; i < scene.size(); ++i) emits[i] = Emitters::emits(scene.emission().rgb(i));
+        for (size_t i = 0; i < scene.size(); ++i) {
+            emits[i] = Emitters::emits(scene.emission().rgb(i));
+        }
     }
     mOffset.assign(scene.size(), 0.f);
     mSpread.assign(scene.size(), openvdb::Vec3f(0.f));

@@ -4,8 +4,9 @@
 // The voxelised surface: voxel v is its plane with normal n_v, clipped to its cube and to the
 // convex edges of its wall (SurfacePlanes.h). A ray hits the first voxel whose surface it meets;
 // v's front (d . n_v < 0) shows B(v), its back is black; leaving the scene's box is the sky.
-// Rays leave a voxel kRayLift in front of its plane (SurfacePlanes::rayOrigin). Directions are
-// cosine-distributed about a normal.
+// Rays leave a voxel from just in front of its plane (SurfacePlanes::rayOrigin: half a voxel for
+// the gather, as for shadow rays; 0.01 for the Monte Carlo reference, whose estimate is the
+// irradiance where rays start). Directions are cosine-distributed about a normal.
 #pragma once
 
 #include "vdbrad/SampleHash.h"
