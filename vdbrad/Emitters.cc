@@ -202,6 +202,28 @@ Emitters::Emitters(const Scene& scene)
     }
 }
 
+Attribute
+Emitters::exitance(const Scene& scene) const
+{
+    if (!scene.hasEmissionArea()) return scene.emission();
+    const size_t n = scene.size();
+    // Voxels of one patch share its exitance; a voxel of no patch emits nothing (emits()).
+    if (scene.emission().isRgb()) {
+        std::vector<openvdb::Vec3f> e(n, openvdb::Vec3f(0.f));
+        for (size_t i = 0; i < n; ++i) {
+            const int32_t g = patchOf(i);
+            if (g != kNone) e[i] = openvdb::Vec3f(mPatches[size_t(g)].exitance);
+        }
+        return Attribute::fromRgb(std::move(e));
+    }
+    std::vector<float> e(n, 0.f);
+    for (size_t i = 0; i < n; ++i) {
+        const int32_t g = patchOf(i);
+        if (g != kNone) e[i] = float(mPatches[size_t(g)].exitance[0]);
+    }
+    return Attribute::fromGrey(std::move(e));
+}
+
 double
 Emitters::power() const
 {

@@ -74,6 +74,12 @@ public:
     double power() const;
     /// Edges of all outlines: what a receiver's exact form factors cost.
     size_t edges() const;
+    /// Each voxel's emitted radiosity as its patch emits it: @a scene's emission, scaled to
+    /// the mesh's power where the scene has an `emission_area` grid (otherwise a copy of the
+    /// emission). What a method that meets the emitting voxels themselves (Monte Carlo rays)
+    /// must use to agree with the exact direct light. @a scene is the one given to the
+    /// constructor.
+    Attribute exitance(const Scene& scene) const;
 
 private:
     std::vector<EmitterPatch> mPatches;

@@ -2,6 +2,7 @@
 
 #include "vdbrad/TextFormat.h"
 
+#include "vdbrad/Emitters.h"
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
 #include "vdbrad/SampleHash.h"
@@ -57,6 +58,7 @@ MonteCarloSolver::MonteCarloSolver(const Scene& scene, const MonteCarloOptions& 
     : IterativeSolver(FixedPointIteration(options.maxIterations, options.tolerance,
           Acceleration::None, 1))
     , mScene(scene), mOptions(options), mPlanes(scene)
+    , mEmission(Emitters(scene).exitance(scene))
 {
     if (options.samples < 1) {
         OPENVDB_THROW(openvdb::ValueError, "samples must be >= 1, got " << options.samples);
@@ -99,11 +101,11 @@ MonteCarloSolver::MonteCarloSolver(const Scene& scene, const MonteCarloOptions& 
     if (scene.isRgb()) {
         mRgb.resize(n);
         mRgbError.assign(n, openvdb::Vec3f(0.f));
-        for (size_t i = 0; i < n; ++i) mRgb[i] = scene.emission().rgb(i);
+        for (size_t i = 0; i < n; ++i) mRgb[i] = mEmission.rgb(i);
     } else {
         mGrey.resize(n);
         mGreyError.assign(n, 0.f);
-        for (size_t i = 0; i < n; ++i) mGrey[i] = scene.emission().grey(i);
+        for (size_t i = 0; i < n; ++i) mGrey[i] = mEmission.grey(i);
     }
 }
 
@@ -116,7 +118,7 @@ MonteCarloSolver::iterate(std::vector<ValueT>& B, std::vector<ValueT>& err)
     std::vector<ValueT> next(n);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            const ValueT e = value<ValueT>(mScene.emission(), i);
+            const ValueT e = value<ValueT>(mEmission, i);
             const ValueT rho = value<ValueT>(mScene.albedo(), i);
             ValueT out = e, sd = e;
             for (int c = 0; c < channels; ++c) {
@@ -225,7 +227,7 @@ MonteCarloSolver::gather(const std::vector<ValueT>& B, const std::vector<ValueT>
                 }
                 a = b;
             }
-            const ValueT e = vdbrad::value<ValueT>(mScene.emission(), i);
+            const ValueT e = vdbrad::value<ValueT>(mEmission, i);
             const ValueT rho = vdbrad::value<ValueT>(mScene.albedo(), i);
             for (int c = 0; c < channels; ++c) {
                 double m = 0.0, ss = 0.0;

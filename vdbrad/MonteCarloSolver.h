@@ -9,7 +9,9 @@
 // hits v: v's front (d . n_v < 0) shows B(v), its back is black. A ray that crosses a surface
 // voxel's cube in front of its plane passes (the neighbours of a flat wall, at grazing angles).
 // A 26-connected shell stops every ray this way: rays traverse cubes 6-connectedly. Leaving the
-// scene's box is the sky (0). The direct light's shadow rays follow the same rule.
+// scene's box is the sky (0). The direct light's shadow rays follow the same rule. An emitting
+// voxel shows its patch's exitance (Emitters::exitance: scaled to the mesh's power when the scene
+// has an `emission_area`), the light the exact direct light integrates, so the two agree.
 //
 // Estimator: S rays per voxel from 0.01 voxel in front of its plane (the estimate is the
 // irradiance where they start), cosine-distributed about n_x (stratified in cos^2 theta,
@@ -133,6 +135,9 @@ private:
     const Scene& mScene;
     MonteCarloOptions mOptions;
     SurfacePlanes mPlanes;
+    // What a ray that meets an emitting voxel collects: its patch's exitance, so that the
+    // voxelised light's power is the mesh's (emission_area), as in the exact direct light.
+    Attribute mEmission;
     std::vector<uint32_t> mHits;
     std::vector<char> mClosed;   // per voxel: faces a closed cavity (Enclosure.h)
     std::vector<float> mGrey, mGreyError;

@@ -1,9 +1,9 @@
 # Render an OBJ scene in Blender Cycles as the path-traced reference for vdbrad (issue 23):
-# pure Lambertian materials from the MTL's Kd, emission strength = Ke (so every pixel equals
-# vdbrad's radiosity B: an Emission shader of strength S shows radiance S, vdbrad's exitance E is
-# radiance E / pi), one-sided emitters, no denoising, no clamping, no adaptive sampling, a box
-# pixel filter of the narrowest width (point samples at the pixel centre, as vdbrad's renderer),
-# float EXR, the Standard view transform.
+# pure Lambertian materials from the MTL's Kd (emitters' too), emission strength = Ke (so every
+# pixel equals vdbrad's radiosity B: an Emission shader of strength S shows radiance S, vdbrad's
+# exitance E is radiance E / pi), one-sided emitters, no denoising, no clamping, no adaptive
+# sampling, a box pixel filter of the narrowest width (point samples at the pixel centre, as
+# vdbrad's renderer), float EXR, the Standard view transform.
 #
 #   blender -b -noaudio --factory-startup --python cornell_cycles.py -- \
 #       MESH.obj OUT.exr SAMPLES [SEED] [WIDTHxHEIGHT] [eye,target,up,fov]
@@ -60,12 +60,20 @@ for mat in bpy.data.materials:
         s = max(ke)
         emit.inputs["Color"].default_value = (ke[0] / s, ke[1] / s, ke[2] / s, 1.0)
         emit.inputs["Strength"].default_value = s
+        # The emitter also reflects its Kd, as vdbrad's emitting voxels do (an Emission shader
+        # alone is black to incoming light: the Cornell light's Kd 0.73 moved the back wall 1 %).
+        reflect = nodes.new("ShaderNodeBsdfDiffuse")
+        reflect.inputs["Color"].default_value = (kd[0], kd[1], kd[2], 1.0)
+        reflect.inputs["Roughness"].default_value = 0.0
+        front = nodes.new("ShaderNodeAddShader")
+        links.new(emit.outputs["Emission"], front.inputs[0])
+        links.new(reflect.outputs["BSDF"], front.inputs[1])
         black = nodes.new("ShaderNodeBsdfDiffuse")
         black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
         geometry = nodes.new("ShaderNodeNewGeometry")
         mix = nodes.new("ShaderNodeMixShader")
         links.new(geometry.outputs["Backfacing"], mix.inputs["Fac"])
-        links.new(emit.outputs["Emission"], mix.inputs[1])
+        links.new(front.outputs["Shader"], mix.inputs[1])
         links.new(black.outputs["BSDF"], mix.inputs[2])
         links.new(mix.outputs["Shader"], output.inputs["Surface"])
     else:
