@@ -9,6 +9,8 @@
 #   REF_SPP=4096 VDBRAD_RUNS="128:1000 256:3000" CYCLES_SPP="16 64" bash benchmarks/compare_cycles.sh
 #   REF1=a.exr REF2=b.exr ...                     (reuse two reference renders of different seeds)
 #   VDBRAD_MESH= ...                              (draw the voxels, not the mesh: voxel outlines)
+#   VDBRAD_DIRECT=exact VDBRAD_SOLVE="--lines standard" ...   (one direct mode; more solve options)
+#   CSV=docs/cornell-vs-cycles.csv ...            (append one row per run: scripts/plot-cycles.py)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 V=${VDBRAD:-build/vdbrad}
@@ -32,22 +34,34 @@ done
 
 images=()
 labels=()
+rows=()   # tool,res,directions,direct,options,spp,seconds
 for run in ${VDBRAD_RUNS-64:1000 128:300 128:1000 128:3000 256:1000 256:3000 512:1000}; do
   res=${run%%:*}; dirs=${run##*:}
-  for direct in sweep exact; do
-    img="$out/vdbrad_${res}_${dirs}_${direct}.exr"
+  for direct in ${VDBRAD_DIRECT-sweep exact}; do
+    tag=$(echo "${VDBRAD_SOLVE-}" | tr -c 'a-zA-Z0-9.\n-' _)
+    img="$out/vdbrad_${res}_${dirs}_${direct}${tag}.exr"
     t=$(seconds sh -c "'$V' voxelize '$mesh' - --res $res --quiet \
       | '$V' solve - - --directions $dirs --tolerance 1e-4 --direct $direct --quiet \
+        ${VDBRAD_SOLVE-} \
       | '$V' render - '$img' --res $size --camera $cam --exr-type float --aa 4 --quiet \
         ${VDBRAD_MESH-"--mesh '$mesh'"}")
-    images+=("$img"); labels+=("vdbrad res $res, $dirs directions, direct $direct: $t s")
+    images+=("$img"); labels+=("vdbrad res $res, $dirs directions, direct $direct ${VDBRAD_SOLVE-}: $t s")
+    rows+=("vdbrad,$res,$dirs,$direct,${VDBRAD_SOLVE-},,$t")
   done
 done
 for spp in ${CYCLES_SPP-16 64 256 1024}; do
   img="$out/cycles_${spp}.exr"
   t=$(seconds blender_run "$spp" 7 "$img")
   images+=("$img"); labels+=("cycles $spp spp: $t s")
+  rows+=("cycles,,,,,$spp,$t")
 done
 printf '%s\n' "${labels[@]}"
 blender -b -noaudio --factory-startup --python benchmarks/cycles/image_error.py -- \
-  --noise "$ref2" "$ref1" "${images[@]}" 2>/dev/null | grep -E "error|noise|stripes"
+  --noise "$ref2" "$ref1" "${images[@]}" 2>/dev/null | grep -E "error|noise|stripes" \
+  | tee "$out/errors.txt"
+if [ -n "${CSV-}" ]; then
+  [ -s "$CSV" ] || echo "tool,res,directions,direct,options,spp,seconds,error,interior,stripes" > "$CSV"
+  # image_error.py prints "IMAGE: error E interior I stripes S" in the images' order.
+  grep -E "^[^ ]+: error" "$out/errors.txt" | awk '{print $3","$5","$7}' \
+    | paste -d, <(printf '%s\n' "${rows[@]}") - >> "$CSV"
+fi
