@@ -263,27 +263,41 @@ TEST_F(DirectTest, ShadowsMatchTheRayRulesVisibility)
     const Scene scene = b.build();
     const double a0 = lo - 0.5, a1 = hi + 0.5;                               // lamp cells
     const double c0 = b0 - 0.5, c1 = b1 + 0.5, d0 = b0 - 0.5, d1 = b1 + 8.5;   // plate cells
-    const double y0 = plate - 0.5, y1 = plate;                                // blocking box
+    const double y0 = plate - 0.5, y1 = plate;   // the cubes' part behind the plate's plane
     // Is the ray from (x, lift, z) to (u, lamp, v) blocked? (Shadow rays start half a voxel
-    // in front of the receiver's centre.) Where along y it is over the plate in x, and in z,
-    // and between y0 and y1: the three intervals meet.
+    // in front of the receiver's centre.) The plate is a lone sheet (SurfacePlanes::stops): a
+    // ray meets it where it crosses its plane y1 over the plate's cells, or where, behind the
+    // plane (y0 to y1), it passes from one plate cube into another (a crack); one that enters a
+    // cube from below and leaves by the plate's outer side before the plane passes its edge.
     const double lift = 0.5;
+    auto at = [&](double p0, double p1, double y) {
+        return p0 + (p1 - p0) * (y - lift) / (lamp - lift);
+    };
     auto blocked = [&](double x, double z, double u, double v) {
-        double lo_ = y0 - lift, hi_ = y1 - lift;      // heights above the ray's start
+        const double x1 = at(x, u, y1), z1 = at(z, v, y1);
+        if (x1 >= c0 && x1 <= c1 && z1 >= d0 && z1 <= d1) return true;
+        // The part behind the plane, (x0, z0) -> (x1, z1), clipped to the plate's cells.
+        const double x0 = at(x, u, y0), z0 = at(z, v, y0);
+        double sa = 0.0, sb = 1.0;
         auto clip = [&](double p0, double p1, double e0, double e1) {
-            const double slope = (p1 - p0) / (lamp - lift);   // coordinate = p0 + slope y
-            if (slope == 0.0) {
-                if (p0 < e0 || p0 > e1) hi_ = -1.0;
+            if (p1 == p0) {
+                if (p0 < e0 || p0 > e1) sb = -1.0;
                 return;
             }
-            double ya = (e0 - p0) / slope, yb = (e1 - p0) / slope;
-            if (ya > yb) std::swap(ya, yb);
-            lo_ = std::max(lo_, ya);
-            hi_ = std::min(hi_, yb);
+            double ta = (e0 - p0) / (p1 - p0), tb = (e1 - p0) / (p1 - p0);
+            if (ta > tb) std::swap(ta, tb);
+            sa = std::max(sa, ta);
+            sb = std::min(sb, tb);
         };
-        clip(x, u, c0, c1);
-        clip(z, v, d0, d1);
-        return lo_ <= hi_;
+        clip(x0, x1, c0, c1);
+        clip(z0, z1, d0, d1);
+        if (!(sa < sb)) return false;
+        // Within one cell it passes; across a cell boundary it slipped from cube to cube.
+        const double e = 1e-9 * (sb - sa);
+        auto cell = [](double q) { return std::floor(q + 0.5); };
+        const double xa = x0 + (x1 - x0) * (sa + e), xb = x0 + (x1 - x0) * (sb - e);
+        const double za = z0 + (z1 - z0) * (sa + e), zb = z0 + (z1 - z0) * (sb - e);
+        return cell(xa) != cell(xb) || cell(za) != cell(zb);
     };
     // The reference's seen share per floor voxel.
     const int m = 160;
@@ -676,59 +690,65 @@ TEST_F(DirectTest, EmissionAreaScalesPatchPowerAndIsChecked)
 // exact direct light integrates: with an `emission_area` of half a face per voxel the patch
 // emits half of E x its voxels' area (Emitters::exitance), and the floor under it agrees with
 // the exact direct light within the rays' reported error. Before, Monte Carlo collected the
-// whole E (2x here; the Cornell light's rim 8 % at res 128).
+// whole E (2x here; the Cornell light's rim 8 % at res 128). Hung alone, and in a black ceiling
+// as the Cornell light is: rays that reach the lone lamp's open side from below its edge pass
+// behind it (SurfacePlanes::stops), as they pass the patch's outline (before that rule its
+// floor was 8.8 % bright).
 TEST_F(DirectTest, MonteCarloSeesTheLightsMeshPower)
 {
-    // The lamp sits in a black ceiling, as the Cornell light does: a free edge would show its
-    // cubes' sides to grazing rays (the rule that closes digitisation cracks), which the
-    // patch's outline does not have.
-    SceneBuilder b;
-    for (int i = 0; i < 16; ++i) {
-        for (int k = 0; k < 16; ++k) {
-            const bool lamp = i >= 6 && i < 10 && k >= 6 && k < 10;
-            b.set(Coord(i, 6, k), Vec3d(0, -1, 0), 0.f, lamp ? 2.f : 0.f);
-            b.set(Coord(i, 0, k), Vec3d(0, 1, 0), 0.5f, 0.f);
+    for (const bool ceiling : {false, true}) {
+        SceneBuilder b;
+        for (int i = 0; i < 16; ++i) {
+            for (int k = 0; k < 16; ++k) {
+                const bool lamp = i >= 6 && i < 10 && k >= 6 && k < 10;
+                if (lamp || ceiling) {
+                    b.set(Coord(i, 6, k), Vec3d(0, -1, 0), 0.f, lamp ? 2.f : 0.f);
+                }
+                b.set(Coord(i, 0, k), Vec3d(0, 1, 0), 0.5f, 0.f);
+            }
         }
-    }
-    openvdb::GridPtrVec grids = b.grids();
-    auto half = openvdb::FloatGrid::create(0.f);
-    half->setName(kEmissionArea);
-    for (int i = 6; i < 10; ++i) {
-        for (int k = 6; k < 10; ++k) half->tree().setValue(Coord(i, 6, k), 0.5f);
-    }
-    grids.push_back(half);
-    const Scene scene = buildScene(grids);
-    const Attribute shown = Emitters(scene).exitance(scene);
-    for (size_t i = 0; i < scene.size(); ++i) {
-        EXPECT_EQ(shown.grey(i), scene.emission().grey(i) > 0.f ? 1.f : 0.f);
-    }
+        openvdb::GridPtrVec grids = b.grids();
+        auto half = openvdb::FloatGrid::create(0.f);
+        half->setName(kEmissionArea);
+        for (int i = 6; i < 10; ++i) {
+            for (int k = 6; k < 10; ++k) half->tree().setValue(Coord(i, 6, k), 0.5f);
+        }
+        grids.push_back(half);
+        const Scene scene = buildScene(grids);
+        const Attribute shown = Emitters(scene).exitance(scene);
+        for (size_t i = 0; i < scene.size(); ++i) {
+            EXPECT_EQ(shown.grey(i), scene.emission().grey(i) > 0.f ? 1.f : 0.f);
+        }
 
-    RadiositySolver exact(scene, RadiosityOptions());
-    exact.solve();
-    ASSERT_TRUE(exact.exactDirect());
-    MonteCarloOptions o;
-    o.samples = 4096;
-    o.maxIterations = 2;   // nothing the floor sends comes back: two iterations are exact
-    o.tolerance = 0.0;
-    MonteCarloSolver mc(scene, o);
-    mc.solve();
-    double sumExact = 0.0, sumMc = 0.0, z2 = 0.0;
-    size_t count = 0;
-    for (size_t i = 0; i < scene.size(); ++i) {
-        if (scene.voxels().coord(i).y() != 0) continue;
-        const double se = mc.greyError()[i];
-        ASSERT_GT(se, 0.0);
-        EXPECT_LE(std::abs(mc.grey()[i] - exact.grey()[i]), 5.0 * se + 1e-3 * exact.grey()[i])
-            << scene.voxels().coord(i);
-        z2 += (mc.grey()[i] - exact.grey()[i]) * (mc.grey()[i] - exact.grey()[i]) / (se * se);
-        sumExact += exact.grey()[i];
-        sumMc += mc.grey()[i];
-        ++count;
+        RadiositySolver exact(scene, RadiosityOptions());
+        exact.solve();
+        ASSERT_TRUE(exact.exactDirect());
+        MonteCarloOptions o;
+        o.samples = 4096;
+        o.maxIterations = 2;   // nothing the floor sends comes back: two iterations are exact
+        o.tolerance = 0.0;
+        MonteCarloSolver mc(scene, o);
+        mc.solve();
+        double sumExact = 0.0, sumMc = 0.0, z2 = 0.0;
+        size_t count = 0;
+        for (size_t i = 0; i < scene.size(); ++i) {
+            if (scene.voxels().coord(i).y() != 0) continue;
+            const double se = mc.greyError()[i];
+            ASSERT_GT(se, 0.0);
+            const double diff = mc.grey()[i] - exact.grey()[i];
+            EXPECT_LE(std::abs(diff), 5.0 * se + 1e-3 * exact.grey()[i])
+                << scene.voxels().coord(i);
+            z2 += diff * diff / (se * se);
+            sumExact += exact.grey()[i];
+            sumMc += mc.grey()[i];
+            ++count;
+        }
+        ASSERT_EQ(count, 256u);
+        std::cout << "floor under a half-covered lamp" << (ceiling ? " in a ceiling" : "")
+                  << ": Monte Carlo / exact direct " << sumMc / sumExact
+                  << ", rms (MC - exact) / stderr " << std::sqrt(z2 / double(count)) << "\n";
+        // Measured: 1.0085 alone, 1.0004 in the ceiling.
+        EXPECT_NEAR(sumMc / sumExact, 1.0, 0.015);
+        EXPECT_LT(std::sqrt(z2 / double(count)), 1.5);
     }
-    ASSERT_EQ(count, 256u);
-    std::cout << "floor under a half-covered lamp: Monte Carlo / exact direct "
-              << sumMc / sumExact << ", rms (MC - exact) / stderr "
-              << std::sqrt(z2 / double(count)) << "\n";
-    EXPECT_NEAR(sumMc / sumExact, 1.0, 0.01);
-    EXPECT_LT(std::sqrt(z2 / double(count)), 1.5);
 }

@@ -28,10 +28,10 @@ SurfacePlanes::SurfacePlanes(const Scene& scene)
     const VoxelIndex& voxels = scene.voxels();
     // Emitters and the rest are different walls, however they face: a lamp a millimetre under
     // a ceiling (the Cornell mesh's) must not take the ceiling's plane, a voxel behind its own.
-    std::vector<char> emits(scene.size(), 0);
+    mEmits.assign(scene.size(), 0);
     if (scene.hasEmission()) {
         for (size_t i = 0; i < scene.size(); ++i) {
-            emits[i] = Emitters::emits(scene.emission().rgb(i));
+            mEmits[i] = Emitters::emits(scene.emission().rgb(i));
         }
     }
     mOffset.assign(scene.size(), 0.f);
@@ -50,10 +50,7 @@ SurfacePlanes::SurfacePlanes(const Scene& scene)
                             for (int dz = -kReach; dz <= kReach; ++dz) {
                                 if (dx == 0 && dy == 0 && dz == 0) continue;
                                 const int32_t j = acc.getValue(c.offsetBy(dx, dy, dz));
-                                if (j < 0 || emits[size_t(j)] != emits[i]
-                                    || scene.normal(size_t(j)).dot(n) < kSameWall) {
-                                    continue;
-                                }
+                                if (j < 0 || !sameWall(i, size_t(j))) continue;
                                 sum += Vec3d(dx, dy, dz);
                                 ++count;
                             }
@@ -90,8 +87,59 @@ SurfacePlanes::stops(size_t i, const Vec3d& o, const Vec3d& d, double tIn, doubl
     if (!crossesVoxelSurface(o, d, tIn, tOut, c, n)) return false;
     // Where the ray is first behind the plane: the entry, or the crossing.
     const double s0 = n.dot(o + d * tIn - c);
+    if (s0 < 0.0 && n.dot(o + d * tOut - c) < 0.0 && openBehind(i, o + d * tIn, acc)) {
+        return false;
+    }
     const double t = s0 < 0.0 ? tIn : tIn + s0 / -n.dot(d);
     return !beyondConvexEdge(i, o + d * t, acc);
+}
+
+bool
+SurfacePlanes::sameWall(size_t i, size_t j) const
+{
+    return mEmits[i] == mEmits[j] && mScene->normal(j).dot(mScene->normal(i)) >= kSameWall;
+}
+
+bool
+SurfacePlanes::openBehind(size_t i, const Vec3d& entry, VoxelIndex::Accessor& acc) const
+{
+    // The faces of i's cube the entry point lies on (an edge or a corner: several). A ray that
+    // starts inside the cube is not known to come from open space.
+    constexpr double kOnFace = 1e-6;
+    const Coord c = mScene->voxels().coord(i);
+    bool onFace = false;
+    for (int k = 0; k < 3; ++k) {
+        const double f = entry[k] - double(c[k]);
+        for (const int side : {-1, 1}) {
+            if (side * f < 0.5 - kOnFace) continue;
+            onFace = true;
+            // The nine cubes beyond that face: a voxel of i's wall there makes it a crack.
+            for (int a = -1; a <= 1; ++a) {
+                for (int b = -1; b <= 1; ++b) {
+                    Coord q = c;
+                    q[k] += side;
+                    q[(k + 1) % 3] += a;
+                    q[(k + 2) % 3] += b;
+                    const int32_t j = acc.getValue(q);
+                    if (j >= 0 && sameWall(i, size_t(j))) return false;
+                }
+            }
+        }
+    }
+    if (!onFace) return false;
+    // A neighbour facing another way: i is on an edge of a body, whose inside is behind i's
+    // plane (a ray entering there met the body). A coplanar wall of another kind (the ceiling
+    // around a lamp) closes nothing.
+    const openvdb::Vec3f& n = mScene->normal(i);
+    for (int dx = -1; dx <= 1; ++dx) {
+        for (int dy = -1; dy <= 1; ++dy) {
+            for (int dz = -1; dz <= 1; ++dz) {
+                const int32_t j = acc.getValue(c.offsetBy(dx, dy, dz));
+                if (j >= 0 && mScene->normal(size_t(j)).dot(n) < kSameWall) return false;
+            }
+        }
+    }
+    return true;
 }
 
 bool

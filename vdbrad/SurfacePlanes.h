@@ -61,18 +61,25 @@ public:
 
     /// @brief Does the ray o + t d (index space), crossing voxel @a i's cube for t in
     /// [@a tIn, @a tOut], meet the voxel's surface? It does if it crosses the plane there or
-    /// runs behind it (it slipped through a crack between tilted patches), unless that point is
-    /// beyond a convex edge of the voxel's wall. One that stays in front passes (a flat wall's
-    /// neighbours, at grazing angles). @a acc: any accessor of the scene's index tree.
+    /// runs behind it having come through a face of the cube that borders its wall (it slipped
+    /// through a crack between tilted patches), unless that point is beyond a convex edge of
+    /// the voxel's wall. One that stays in front passes (a flat wall's neighbours, at grazing
+    /// angles), and so does one that enters behind the plane from beyond a free edge of a sheet
+    /// (no voxel of the wall across the face it entered by, none facing another way around)
+    /// and stays behind it: the open side of a lamp hung under a ceiling, or under a lone
+    /// plate, did not meet it (the mesh's thin quad). @a acc: any accessor of the index tree.
     bool stops(size_t i, const openvdb::Vec3d& o, const openvdb::Vec3d& d, double tIn,
         double tOut, VoxelIndex::Accessor& acc) const;
 
 private:
     bool beyondConvexEdge(size_t j, const openvdb::Vec3d& x, VoxelIndex::Accessor& acc) const;
+    bool sameWall(size_t i, size_t j) const;
+    bool openBehind(size_t i, const openvdb::Vec3d& entry, VoxelIndex::Accessor& acc) const;
 
     const Scene* mScene = nullptr;
     std::vector<float> mOffset;
     std::vector<openvdb::Vec3f> mSpread;
+    std::vector<char> mEmits;   // per voxel: emits (Emitters::emits); a wall never mixes them
 };
 
 } // namespace vdbrad
