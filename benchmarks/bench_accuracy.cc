@@ -1,5 +1,7 @@
 // Accuracy against exact references: the disk's on-axis receiver irradiance (Howell B-13,
 // E r^2 / (r^2 + h^2) = 0.5) for several direction counts and resolutions, with the solve time.
+// The direct light goes through the sweeps (--direct sweep), whose accuracy this measures: exact
+// direct light, the default, gives it to rounding (bench_direct).
 //
 //   build/benchmarks/bench_accuracy [res ...]      (default 32 64 128)
 #include "grids/CanonicalGrids.h"
@@ -30,6 +32,7 @@ main(int argc, char** argv)
             o.directions = dirs;
             o.maxIterations = 2;   // receiver albedo 1, emitter albedo 0: exact after two
             o.tolerance = 0.0;
+            o.direct = vdbrad::DirectMode::Sweep;
             const auto t0 = std::chrono::steady_clock::now();
             vdbrad::RadiositySolver solver(scene, o);
             solver.solve();

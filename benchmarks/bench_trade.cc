@@ -4,7 +4,9 @@
 //
 // study "disk": the emitting disk under the albedo-1 receiver, whose irradiance is known at
 //   every receiver point (grids::diskIrradiance, Howell B-13); two iterations are exact for it
-//   (the disk does not reflect). Knobs: resolution (32-512) x direction count x line type. Errors over
+//   (the disk does not reflect), with the direct light sent through the sweeps (--direct sweep:
+//   exact direct light, the default, gives it to rounding: bench_direct). Knobs: resolution
+//   (32-512) x direction count x line type. Errors over
 //   the receiver voxels within 0.5 of the axis (irradiance >= ~0.1): the mean and the max of
 //   |B - exact| / exact, and the on-axis error of bench_accuracy.
 // study "cornell": the RGB Cornell box against the two-pass Monte Carlo reference on the same
@@ -181,6 +183,8 @@ main(int argc, char** argv)
                 o.maxIterations = 2;
                 o.tolerance = 0.0;
                 o.lines = lines;
+                // The sweeps' own transport: exact direct light (the default) makes it exact.
+                o.direct = vdbrad::DirectMode::Sweep;
                 const Run r = run(scene, o);
                 const vdbrad::RadiositySolver& solver = *r.solver;
                 double axisB = 0.0, axisExact = 0.0, sum = 0.0, worst = 0.0;
