@@ -238,6 +238,11 @@ commands()
                 OptionSpec{"phase-order", OptionType::Int, "8", "6",
                     "spherical-harmonic order kept for an anisotropic phase (delta-M beyond); "
                     "(order + 1)^2 floats per voxel"}.within(0, 32),
+                OptionSpec{"voxel-source", OptionType::String, "constant", "linear",
+                    "the scattered light's shape inside a voxel along each line step: linear "
+                    "(its slope from the voxels before and after: right in voxels of optical "
+                    "depth ~1 and more) or constant (the thesis' scheme: thin voxels only)"}
+                    .oneOf({"linear", "constant"}),
                 OptionSpec{"extinction-scale", OptionType::Float, "1", "10",
                     "extinction per world unit = density x this"}.above(0),
                 OptionSpec{"irradiance", OptionType::Float, "1", "3",

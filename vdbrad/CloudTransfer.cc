@@ -16,6 +16,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -33,12 +34,42 @@ using openvdb::Vec3d;
 constexpr double kPi = 3.14159265358979323846;
 // What a line carries: its radiance, whether it has met its first voxel yet (periodic boundaries
 // give that voxel the light re-entering the box) and the last voxel it met (where it leaves).
+// A line's state. The source inside a voxel is taken linear along the line, with its slope from
+// the sources of the voxels before and after it, so a voxel is finished when the next one is met
+// (or the pass ends): `radiance` is what enters the pending voxel `last`.
 struct Ray
 {
     float radiance = 0.f;
     bool started = false;
+    bool pending = false;      // `last` is not finished yet
+    bool hasBefore = false;    // the voxel before `last` on the line is its neighbour
     uint32_t last = 0;
+    float s = 0.f, r = 0.f, b = 0.f;   // last's source: total, higher moments, beam
+    float before = 0.f;                // the source of the voxel before it
 };
+
+// The source's rise across a step, from the steps before (dm) and after (dp): the monotonized
+// central difference (second order where the source is smooth, no new extremum where it is not),
+// kept within +-2 s so that the source stays >= 0 across the step.
+inline float
+sourceSlope(float s, const float* before, const float* after)
+{
+    float slope = 0.f;
+    if (before && after) {
+        const float dm = s - *before, dp = *after - s;
+        if (dm * dp > 0.f) {
+            const float c = 0.5f * (dm + dp);
+            slope = std::copysign(std::min({std::abs(c), 2.f * std::abs(dm), 2.f * std::abs(dp)}),
+                c);
+        }
+    } else if (before) {
+        slope = s - *before;
+    } else if (after) {
+        slope = *after - s;
+    }
+    const float bound = 2.f * std::max(s, 0.f);
+    return std::clamp(slope, -bound, bound);
+}
 
 } // namespace
 
@@ -272,6 +303,37 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
     const float beamT[2] = {phase.beam[2 * d], phase.beam[2 * d + 1]};
     const float* yAcc[2] = {&phase.harmonics[2 * d * M], &phase.harmonics[(2 * d + 1) * M]};
     LineSweep::Lanes<Ray>& work = lanes.local();
+    const bool linear = t.mOptions.source == VoxelSource::Linear;
+    const int major = std::abs(sigma.x()) >= std::abs(sigma.y())
+        ? (std::abs(sigma.x()) >= std::abs(sigma.z()) ? 0 : 2)
+        : (std::abs(sigma.y()) >= std::abs(sigma.z()) ? 1 : 2);
+    // The pending voxel of @a ray, its source rising by the slope from the one before it and
+    // @a after (the next one's source, null at a gap or the line's end): its moments, and the
+    // radiance that leaves it.
+    auto finish = [&](Ray& ray, size_t sense, const float* after) {
+        const uint32_t x = ray.last;
+        const float tau = kappaP[x] * step;
+        float absorb, mean, perTau = 0.f;
+        stepFactors(tau, absorb, mean);
+        const float slope = linear
+            ? sourceSlope(ray.s, ray.hasBefore ? &ray.before : nullptr, after) : 0.f;
+        const float gain = slope != 0.f ? linearSourceGain(tau, perTau) : 0.f;
+        const float* y = yAcc[sense];
+        const float s = ray.s, r = ray.r, b = ray.b, L = ray.radiance;
+        // Mean over the step: s + (L - s) f - slope h / tau. I_00 gathers only
+        // b + (L - b - r) f - slope h / tau; iterate() adds the rest, s0 (1 - f) + r, summed
+        // over the directions in closed form (the self-scattering elimination), so that an
+        // opaque voxel's I_00 is not a small difference of floats.
+        const float rest = omega * (b + (L - b - r) * mean - slope * perTau);
+        float* acc = &G[size_t(x) * M];
+        acc[0] += rest * y[0];
+        if (M > 1) {
+            const float lbar = omega * (s + (L - s) * mean - slope * perTau);
+            for (size_t lm = 1; lm < M; ++lm) acc[lm] += lbar * y[lm];
+        }
+        ray.radiance = L + (s - L) * absorb + slope * gain;
+        ray.pending = false;
+    };
     auto pass = [&](bool sources) {
         std::fill(exits.begin(), exits.end(), 0.0);
         pattern.sweep->walk(sigma, schedule->reversed(d), work,
@@ -287,9 +349,6 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
                         }
                     }
                 }
-                ray.last = x;
-                float absorb, mean;
-                stepFactors(kappaP[x] * step, absorb, mean);
                 const size_t sense = forward ? 0 : 1;
                 const float* y = yAcc[sense];
                 // The source: its isotropic part s0, its higher moments' part r and the beam's
@@ -302,23 +361,27 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
                     b = B[x] * beamT[sense];
                 }
                 const float s = s0 + r + b;
-                // Mean over the step: s + (L - s) f. I_00 gathers only b + (L - b - r) f;
-                // iterate() adds the rest, s0 (1 - f) + r, summed over the directions in closed
-                // form (the self-scattering elimination), so that an opaque voxel's I_00 is not
-                // a small difference of floats.
-                const float rest = omega * (b + (ray.radiance - b - r) * mean);
-                float* acc = &G[size_t(x) * M];
-                acc[0] += rest * y[0];
-                if (M > 1) {
-                    const float lbar = omega * (s + (ray.radiance - s) * mean);
-                    for (size_t lm = 1; lm < M; ++lm) acc[lm] += lbar * y[lm];
+                bool adjacent = false;
+                if (ray.pending) {
+                    // Neighbours along the line: one step apart on its major axis (no gap).
+                    adjacent = std::abs(pattern.sweep->coord(x)[major]
+                        - pattern.sweep->coord(ray.last)[major]) == 1;
+                    const float before = ray.s;
+                    finish(ray, sense, adjacent ? &s : nullptr);
+                    ray.before = before;
                 }
-                ray.radiance += (s - ray.radiance) * absorb;
+                ray.hasBefore = adjacent;
+                ray.pending = true;
+                ray.last = x;
+                ray.s = s;
+                ray.r = r;
+                ray.b = b;
             },
             [&](const Ray* fronts, size_t lines, bool forward) {
                 const Vec3d dir = forward ? unit : -unit;
                 for (size_t l = 0; l < lines; ++l) {
-                    const Ray& ray = fronts[l];
+                    Ray ray = fronts[l];
+                    if (ray.pending) finish(ray, forward ? 0 : 1, nullptr);
                     if (!ray.started || ray.radiance == 0.f) continue;
                     const double power = double(ray.radiance) * etendue;
                     if (periodic) {
@@ -549,9 +612,9 @@ CloudTransfer::fingerprint() const
     h = hashBytes(impl.deposited.data(), impl.deposited.size() * sizeof(double), h);
     h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
     h = hashBytes(impl.phase.beam.data(), impl.phase.beam.size() * sizeof(float), h);
-    const int64_t options[10] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
+    const int64_t options[11] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
         mOptions.phaseOrder, int64_t(mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
-        impl.M, mCopies.x(), mCopies.y(), mCopies.z()};
+        impl.M, mCopies.x(), mCopies.y(), mCopies.z(), int64_t(mOptions.source)};
     return hashBytes(options, sizeof options, h);
 }
 
@@ -636,6 +699,7 @@ CloudTransfer::describe() const
            << " copies of the box)";
     }
     if (mOptions.accelerate == Acceleration::Anderson) os << ", Anderson acceleration";
+    if (mOptions.source == VoxelSource::Constant) os << ", constant source per voxel";
     return os.str();
 }
 

@@ -40,6 +40,25 @@ stepFactors(float tau, float& absorb, float& mean)
     }
 }
 
+// Across a step of optical depth tau whose source rises linearly from S - S1 / 2 at the entry to
+// S + S1 / 2 at the exit (mean S): L_out = S + (L_in - S) e^-tau + S1 h(tau), and the mean
+// radiance over the step loses S1 h(tau) / tau, with
+//     h(tau) = 1 - (1 - e^-tau) / 2 - (1 - e^-tau) / tau   (tau^2 / 12 for thin steps, 1/2 opaque).
+// Returns h; @a perTau gets h / tau. Series below tau = 0.1 (the closed form cancels there).
+inline float
+linearSourceGain(float tau, float& perTau)
+{
+    if (tau > 0.1f) {
+        const double t = tau, a = -std::expm1(-t);
+        const double h = 1.0 - 0.5 * a - a / t;
+        perTau = float(h / t);
+        return float(h);
+    }
+    // tau^2 / 12 - tau^3 / 24 + tau^4 / 80 - tau^5 / 360: relative error below 1e-6 here.
+    perTau = tau * (1.f / 12.f - tau * (1.f / 24.f - tau * (1.f / 80.f - tau / 360.f)));
+    return tau * perTau;
+}
+
 // A naive line of direction sigma advances one voxel per step along its major axis: the step is
 // |sigma| / max_k |sigma_k| voxels long (float: the sweeps' and the self-scattering factors'
 // optical depths must be the same numbers).
