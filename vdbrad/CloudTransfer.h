@@ -18,7 +18,8 @@
 // VoxelSource::Linear (opt-in until its convergence is measured) the source rises linearly along
 // each step, S + S1 (u - 1/2) for u from 0 at the entry to 1 at the exit, S1 from the sources
 // of the voxels before and after it on the line (the previous iterate's, as S itself): L_out gains
-// S1 h(tau) and the step's mean loses S1 h(tau) / tau (VoxelStep.h). The voxel's mean source, hence what it emits, is unchanged, and
+// S1 h(tau) and the step's mean loses S1 h(tau) / tau (VoxelStep.h). The voxel's mean source,
+// hence what it emits, is unchanged, and
 // tau (L_bar - S) = L_in - L_out still holds step by step, so energy is conserved as before; a
 // voxel is finished when the next one on its line is met.
 //
