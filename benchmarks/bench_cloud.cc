@@ -16,6 +16,7 @@
 //                                solves the W-wide box as given, auto as the default copies
 //                                side by side, both each slab both ways, in this process, with
 //                                the time ratio auto / none)
+//                                [source=constant|linear] (CloudTransferOptions::source)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -52,6 +53,7 @@ main(int argc, char** argv)
     }
     const int maxIterations = argc > 10 ? std::atoi(argv[10]) : 5000;
     const std::string copies = argc > 11 ? argv[11] : "none";
+    const bool linear = argc > 12 && std::string(argv[12]) == "linear";
     std::vector<int> minPeriods;
     if (copies != "auto") minPeriods.push_back(0);
     if (copies != "none") minPeriods.push_back(-1);
@@ -63,7 +65,8 @@ main(int argc, char** argv)
             "seconds,to1_iterations\n");
     }
     std::printf("periodic slab %d x %d x %d, HG g %.3f (order %d), omega0 %.3f, %d directions "
-        "asked\n", width, layers, width, g, order, omega0, dirs);
+        "asked, %s source per voxel\n", width, layers, width, g, order, omega0, dirs,
+        linear ? "linear" : "constant");
     std::printf("%8s %9s %7s %10s %10s %8s %10s %10s %10s %10s %6s %8s %12s %12s\n", "tau",
         "accel", "copies", "albedo", "exact",
         "error", "transmit", "exact T", "absorb", "balance", "iters", "seconds", "ns/vox.dir",
@@ -86,6 +89,7 @@ main(int argc, char** argv)
         o.maxIterations = maxIterations;
         o.phase = vdbrad::PhaseFunction::henyeyGreenstein(g);
         o.phaseOrder = order;
+        o.source = linear ? vdbrad::VoxelSource::Linear : vdbrad::VoxelSource::Constant;
         vdbrad::test::SlabProblem problem;
         problem.tau = tau;
         problem.omega0 = omega0;

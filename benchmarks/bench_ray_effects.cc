@@ -18,6 +18,7 @@
 // of the smoothing.
 #include "vdbrad/OutputGrids.h"
 #include "vdbrad/RadiositySolver.h"
+#include "vdbrad/SurfacePlanes.h"
 #include "vdbrad/vdbrad.h"
 
 #include <openvdb/openvdb.h>
@@ -70,7 +71,7 @@ smoothReflected(const vdbrad::Scene& scene, const vdbrad::RadiositySolver& solve
             for (int dy = -radius; dy <= radius; ++dy) {
                 for (int dz = -radius; dz <= radius; ++dz) {
                     const int32_t j = voxels.find(voxels.coord(i).offsetBy(dx, dy, dz));
-                    if (j < 0 || scene.normal(size_t(j)).dot(scene.normal(i)) < 0.95f) continue;
+                    if (j < 0 || scene.normal(size_t(j)).dot(scene.normal(i)) < vdbrad::kSameWall) continue;
                     sum += openvdb::Vec3d(R[size_t(j)]);
                     ++n;
                 }

@@ -63,8 +63,8 @@ runSolveCloud(const Arguments& a)
     }
     o.phaseOrder = a.getInt("phase-order");
     o.accelerate = accelerationFromString(a.getString("accelerate"));
-    o.source = a.getString("voxel-source") == "constant" ? VoxelSource::Constant
-                                                         : VoxelSource::Linear;
+    o.source = choice<VoxelSource>(a, "voxel-source",
+        {{"constant", VoxelSource::Constant}, {"linear", VoxelSource::Linear}});
     o.andersonDepth = a.getInt("anderson-depth");
     SolveSession session(a, in, out);
     const VdbFile& file = session.file();

@@ -23,6 +23,7 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <type_traits>
 
 namespace vdbrad {
 
@@ -34,9 +35,8 @@ using openvdb::Vec3d;
 constexpr double kPi = 3.14159265358979323846;
 // What a line carries: its radiance, whether it has met its first voxel yet (periodic boundaries
 // give that voxel the light re-entering the box) and the last voxel it met (where it leaves).
-// A line's state. The source inside a voxel is taken linear along the line, with its slope from
-// the sources of the voxels before and after it, so a voxel is finished when the next one is met
-// (or the pass ends): `radiance` is what enters the pending voxel `last`.
+// A voxel is finished only when the next one on its line is met (or the pass ends), which gives
+// a linear source its slope: until then `radiance` is what enters the pending voxel `last`.
 struct Ray
 {
     float radiance = 0.f;
@@ -44,8 +44,9 @@ struct Ray
     bool pending = false;      // `last` is not finished yet
     bool hasBefore = false;    // the voxel before `last` on the line is its neighbour
     uint32_t last = 0;
-    float s = 0.f, r = 0.f, b = 0.f;   // last's source: total, higher moments, beam
-    float before = 0.f;                // the source of the voxel before it
+    // A linear source only: last's source (total, higher moments, beam), the one before it's.
+    float s = 0.f, r = 0.f, b = 0.f;
+    float before = 0.f;
 };
 
 // The source's rise across a step, from the steps before (dm) and after (dp): the monotonized
@@ -304,22 +305,23 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
     const float* yAcc[2] = {&phase.harmonics[2 * d * M], &phase.harmonics[(2 * d + 1) * M]};
     LineSweep::Lanes<Ray>& work = lanes.local();
     const bool linear = t.mOptions.source == VoxelSource::Linear;
-    const int major = std::abs(sigma.x()) >= std::abs(sigma.y())
-        ? (std::abs(sigma.x()) >= std::abs(sigma.z()) ? 0 : 2)
-        : (std::abs(sigma.y()) >= std::abs(sigma.z()) ? 1 : 2);
+    const int major = part.majorAxis();
     // The pending voxel of @a ray, its source rising by the slope from the one before it and
     // @a after (the next one's source, null at a gap or the line's end): its moments, and the
-    // radiance that leaves it.
-    auto finish = [&](Ray& ray, size_t sense, const float* after) {
+    // radiance that leaves it. Compiled apart for a constant source (Lin false), which is then
+    // finished in place, at the constant scheme's cost.
+    auto finish = [&](auto lin, Ray& ray, float s, float r, float b, size_t sense,
+                      const float* after) {
         const uint32_t x = ray.last;
         const float tau = kappaP[x] * step;
-        float absorb, mean, perTau = 0.f;
+        float absorb, mean, perTau = 0.f, slope = 0.f, gain = 0.f;
         stepFactors(tau, absorb, mean);
-        const float slope = linear
-            ? sourceSlope(ray.s, ray.hasBefore ? &ray.before : nullptr, after) : 0.f;
-        const float gain = slope != 0.f ? linearSourceGain(tau, perTau) : 0.f;
+        if constexpr (decltype(lin)::value) {
+            slope = sourceSlope(s, ray.hasBefore ? &ray.before : nullptr, after);
+            if (slope != 0.f) gain = linearSourceGain(tau, perTau);
+        }
         const float* y = yAcc[sense];
-        const float s = ray.s, r = ray.r, b = ray.b, L = ray.radiance;
+        const float L = ray.radiance;
         // Mean over the step: s + (L - s) f - slope h / tau. I_00 gathers only
         // b + (L - b - r) f - slope h / tau; iterate() adds the rest, s0 (1 - f) + r, summed
         // over the directions in closed form (the self-scattering elimination), so that an
@@ -334,7 +336,8 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
         ray.radiance = L + (s - L) * absorb + slope * gain;
         ray.pending = false;
     };
-    auto pass = [&](bool sources) {
+    // A pass without sources (light wrapping a periodic box) has nothing to slope.
+    auto pass = [&](bool sources, auto lin) {
         std::fill(exits.begin(), exits.end(), 0.0);
         pattern.sweep->walk(sigma, schedule->reversed(d), work,
             [&](uint32_t x, Ray& ray, bool forward) {
@@ -361,27 +364,33 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
                     b = B[x] * beamT[sense];
                 }
                 const float s = s0 + r + b;
-                bool adjacent = false;
-                if (ray.pending) {
-                    // Neighbours along the line: one step apart on its major axis (no gap).
-                    adjacent = std::abs(pattern.sweep->coord(x)[major]
-                        - pattern.sweep->coord(ray.last)[major]) == 1;
-                    const float before = ray.s;
-                    finish(ray, sense, adjacent ? &s : nullptr);
-                    ray.before = before;
+                if constexpr (decltype(lin)::value) {
+                    bool adjacent = false;
+                    if (ray.pending) {
+                        // Neighbours along the line: one step apart on its major axis (no gap).
+                        adjacent = std::abs(pattern.sweep->coord(x)[major]
+                            - pattern.sweep->coord(ray.last)[major]) == 1;
+                        finish(lin, ray, ray.s, ray.r, ray.b, sense, adjacent ? &s : nullptr);
+                        ray.before = ray.s;
+                    }
+                    ray.hasBefore = adjacent;
+                    ray.pending = true;
+                    ray.s = s;
+                    ray.r = r;
+                    ray.b = b;
                 }
-                ray.hasBefore = adjacent;
-                ray.pending = true;
                 ray.last = x;
-                ray.s = s;
-                ray.r = r;
-                ray.b = b;
+                if constexpr (!decltype(lin)::value) finish(lin, ray, s, r, b, sense, nullptr);
             },
             [&](const Ray* fronts, size_t lines, bool forward) {
                 const Vec3d dir = forward ? unit : -unit;
                 for (size_t l = 0; l < lines; ++l) {
                     Ray ray = fronts[l];
-                    if (ray.pending) finish(ray, forward ? 0 : 1, nullptr);
+                    if constexpr (decltype(lin)::value) {
+                        if (ray.pending) {
+                            finish(lin, ray, ray.s, ray.r, ray.b, forward ? 0 : 1, nullptr);
+                        }
+                    }
                     if (!ray.started || ray.radiance == 0.f) continue;
                     const double power = double(ray.radiance) * etendue;
                     if (periodic) {
@@ -398,10 +407,11 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
                 }
             });
     };
-    pass(true);
+    if (linear) pass(true, std::true_type());
+    else pass(true, std::false_type());
     if (periodic) {
         periodic->followWraps(d, periodic->rise(schedule->directions(), d), unit[up], entry,
-            exits, [&] { pass(false); }, &sw.leftNow[periodic->slice(d)], escaped);
+            exits, [&] { pass(false, std::false_type()); }, &sw.leftNow[periodic->slice(d)], escaped);
     }
 }
 

@@ -17,11 +17,11 @@
 // 1/21 whatever their depth), and a slab of 2.5 per voxel reflects 2 % too little. With
 // VoxelSource::Linear (opt-in until its convergence is measured) the source rises linearly along
 // each step, S + S1 (u - 1/2) for u from 0 at the entry to 1 at the exit, S1 from the sources
-// of the voxels before and after it on the line (the previous iterate's, as S itself): L_out gains
-// S1 h(tau) and the step's mean loses S1 h(tau) / tau (VoxelStep.h). The voxel's mean source,
-// hence what it emits, is unchanged, and
-// tau (L_bar - S) = L_in - L_out still holds step by step, so energy is conserved as before; a
-// voxel is finished when the next one on its line is met.
+// of the voxels before and after it on the line (the previous iterate's, as S itself): L_out
+// gains S1 h(tau) and the step's mean loses S1 h(tau) / tau (VoxelStep.h). The voxel's mean
+// source, hence what it emits, is unchanged, and tau (L_bar - S) = L_in - L_out still holds step
+// by step, so energy is conserved as before; a voxel is finished when the next one on its line
+// is met.
 //
 // Light source: the solar beam (SolarBeam.h), attenuated exactly along its own direction; the
 // power D_v it loses in voxel v is the first-order source. Diffuse light is iterated (source
