@@ -231,6 +231,43 @@ TEST_F(CloudTest, ConservativeSlabAgreesWithTheExactSolution)
     EXPECT_NEAR(transfer.budget().transmittance, exact.transmittance, 0.003);
 }
 
+TEST_F(CloudTest, LinearSourceIsRightInThickVoxels)
+{
+    // A conservative periodic slab of optical depth 50 on 20 layers (2.5 per voxel), isotropic
+    // and HG g = 0.848, 303 directions, against adding-doubling (no shared code). The constant
+    // source per voxel reflects too little (measured -2.15 % / -1.28 %): each opaque-ish layer
+    // sends back its mean source instead of its exit face's. A linear source along the step
+    // (measured -0.64 % / -0.04 %) removes most of it and still conserves energy.
+    const Cloud cloud = slab(4, 20, 4, 50.0, 1.f);
+    for (double g : {0.0, 0.848}) {
+        test::SlabProblem problem;
+        problem.tau = 50.0;
+        problem.g = g;
+        const double exact = test::addingDoublingSlab(problem).reflectance;
+        double error[2] = {0.0, 0.0};
+        for (VoxelSource source : {VoxelSource::Constant, VoxelSource::Linear}) {
+            CloudTransferOptions o;
+            o.periodic = true;
+            o.directions = 300;
+            o.tolerance = 1e-6;
+            o.minPeriod = 0;
+            o.accelerate = Acceleration::Anderson;
+            o.phase = PhaseFunction::henyeyGreenstein(g);
+            o.source = source;
+            CloudTransfer transfer(cloud, o);
+            transfer.solve();
+            ASSERT_TRUE(transfer.converged()) << g;
+            EXPECT_NEAR(transfer.budget().balance(), 0.0, 1e-4) << g;
+            error[source == VoxelSource::Linear] = transfer.budget().albedo / exact - 1.0;
+        }
+        std::printf("tau 50 on 20 layers, g %.3f: albedo error constant %+.2f %%, "
+            "linear %+.2f %%\n", g, 100.0 * error[0], 100.0 * error[1]);
+        EXPECT_LT(error[0], -0.01) << g;                  // the constant scheme's known deficit
+        EXPECT_LT(std::abs(error[1]), 0.008) << g;        // the linear one within 0.8 %
+        EXPECT_LT(std::abs(error[1]), 0.5 * std::abs(error[0])) << g;
+    }
+}
+
 TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
 {
     // Issue 8's goal: conservative (omega0 = 1) slab of optical depth 50, albedo within 1% of the
