@@ -17,6 +17,7 @@
 //                                side by side, both each slab both ways, in this process, with
 //                                the time ratio auto / none)
 //                                [source=constant|linear] (CloudTransferOptions::source)
+//                                [weights=cells|harmonic] (CloudTransferOptions::harmonicWeights)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -54,6 +55,7 @@ main(int argc, char** argv)
     const int maxIterations = argc > 10 ? std::atoi(argv[10]) : 5000;
     const std::string copies = argc > 11 ? argv[11] : "none";
     const bool linear = argc > 12 && std::string(argv[12]) == "linear";
+    const bool cells = !(argc > 13 && std::string(argv[13]) == "harmonic");
     std::vector<int> minPeriods;
     if (copies != "auto") minPeriods.push_back(0);
     if (copies != "none") minPeriods.push_back(-1);
@@ -65,8 +67,8 @@ main(int argc, char** argv)
             "seconds,to1_iterations\n");
     }
     std::printf("periodic slab %d x %d x %d, HG g %.3f (order %d), omega0 %.3f, %d directions "
-        "asked, %s source per voxel\n", width, layers, width, g, order, omega0, dirs,
-        linear ? "linear" : "constant");
+        "asked, %s source per voxel, %s weights\n", width, layers, width, g, order, omega0, dirs,
+        linear ? "linear" : "constant", cells ? "cell" : "harmonic");
     std::printf("%8s %9s %7s %10s %10s %8s %10s %10s %10s %10s %6s %8s %12s %12s\n", "tau",
         "accel", "copies", "albedo", "exact",
         "error", "transmit", "exact T", "absorb", "balance", "iters", "seconds", "ns/vox.dir",
@@ -90,6 +92,7 @@ main(int argc, char** argv)
         o.phase = vdbrad::PhaseFunction::henyeyGreenstein(g);
         o.phaseOrder = order;
         o.source = linear ? vdbrad::VoxelSource::Linear : vdbrad::VoxelSource::Constant;
+        o.harmonicWeights = !cells;
         vdbrad::test::SlabProblem problem;
         problem.tau = tau;
         problem.omega0 = omega0;

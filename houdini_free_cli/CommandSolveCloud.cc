@@ -65,6 +65,7 @@ runSolveCloud(const Arguments& a)
     o.accelerate = accelerationFromString(a.getString("accelerate"));
     o.source = choice<VoxelSource>(a, "voxel-source",
         {{"constant", VoxelSource::Constant}, {"linear", VoxelSource::Linear}});
+    o.harmonicWeights = a.getString("weights") == "harmonic";
     o.andersonDepth = a.getInt("anderson-depth");
     SolveSession session(a, in, out);
     const VdbFile& file = session.file();

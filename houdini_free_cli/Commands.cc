@@ -243,6 +243,11 @@ commands()
                     "(its slope from the voxels before and after: right in voxels of optical "
                     "depth ~1 and more) or constant (the thesis' scheme: thin voxels only)"}
                     .oneOf({"linear", "constant"}),
+                OptionSpec{"weights", OptionType::String, "cells", "harmonic",
+                    "direction weights for an anisotropic phase: harmonic (refitted to integrate "
+                    "spherical harmonics exactly to twice the phase order: the error then falls "
+                    "with --directions and --phase-order) or cells (each direction's solid "
+                    "angle)"}.oneOf({"harmonic", "cells"}),
                 OptionSpec{"extinction-scale", OptionType::Float, "1", "10",
                     "extinction per world unit = density x this"}.above(0),
                 OptionSpec{"irradiance", OptionType::Float, "1", "3",

@@ -2,6 +2,7 @@
 
 #include "vdbrad/Denormals.h"
 #include "vdbrad/Errors.h"
+#include "vdbrad/HarmonicQuadrature.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/OutputGrids.h"
@@ -152,6 +153,16 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
             "give a float albedo grid");
     }
     DirectionSet directions = DirectionSet::fromCount(options.directions);
+    // Anisotropic scattering projects the radiance on harmonics up to order K and evaluates
+    // the source from them: weights exact for products of two of them (degree 2K) keep that
+    // projection from aliasing (HarmonicQuadrature.h).
+    const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
+    if (order > 0 && options.harmonicWeights) {
+        HarmonicQuadrature fit = fitHarmonicQuadrature(directions,
+            std::min(2 * order, kMaxQuadratureDegree));
+        mQuadratureDegree = fit.degree;
+        directions = directions.withFactors(std::move(fit.factors));
+    }
     Impl& impl = *mImpl;
     mCopies = copiesFor(given, options, directions.size());
     if (mCopies != Coord(1)) impl.tiled.reset(new Cloud(tileCloud(given, mCopies, &impl.copyOf)));
@@ -171,7 +182,6 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         impl.omega[i] = cloud.albedo().grey(i);
     }
     // Phase function: order K and delta-M scaling of extinction and albedo.
-    const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
     const PhaseFunction::Truncated trunc = options.phase.truncate(order);
     impl.chi = trunc.chi;
     impl.M = (order + 1) * (order + 1);
@@ -622,9 +632,10 @@ CloudTransfer::fingerprint() const
     h = hashBytes(impl.deposited.data(), impl.deposited.size() * sizeof(double), h);
     h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
     h = hashBytes(impl.phase.beam.data(), impl.phase.beam.size() * sizeof(float), h);
-    const int64_t options[11] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
+    const int64_t options[12] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
         mOptions.phaseOrder, int64_t(mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
-        impl.M, mCopies.x(), mCopies.y(), mCopies.z(), int64_t(mOptions.source)};
+        impl.M, mCopies.x(), mCopies.y(), mCopies.z(), int64_t(mOptions.source),
+        mQuadratureDegree};
     return hashBytes(options, sizeof options, h);
 }
 
@@ -707,6 +718,9 @@ CloudTransfer::describe() const
     if (mCopies != Coord(1)) {
         os << " (solved as " << mCopies.x() << " x " << mCopies.y() << " x " << mCopies.z()
            << " copies of the box)";
+    }
+    if (mQuadratureDegree > 0) {
+        os << ", weights exact for harmonics to degree " << mQuadratureDegree;
     }
     if (mOptions.accelerate == Acceleration::Anderson) os << ", Anderson acceleration";
     if (mOptions.source == VoxelSource::Constant) os << ", constant source per voxel";

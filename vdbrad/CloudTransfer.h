@@ -60,7 +60,9 @@
 // harmonic moments I_lm up to order K instead of J alone, and a voxel's source in direction s is
 // S(s) = alpha omega0' sum_l chi_l' sum_m I_lm Y_lm(s), delta-M scaled; alpha rescales it so that
 // the direction set's quadrature of it is exactly the scattered power, so the energy balance
-// above still closes. Cost: (K + 1)^2 multiply-adds per voxel and direction, twice (source and
+// above still closes. The moments are quadratures too: with the cells' solid angles products of
+// order-K harmonics integrate roughly and higher orders alias; harmonicWeights refits the
+// weights to integrate them exactly (HarmonicQuadrature.h). Cost: (K + 1)^2 multiply-adds per voxel and direction, twice (source and
 // moments); memory (K + 1)^2 floats per voxel per accumulator group.
 #pragma once
 
@@ -127,6 +129,11 @@ struct CloudTransferOptions
     int andersonDepth = 16;
     /// The source's shape inside a voxel along each step.
     VoxelSource source = VoxelSource::Constant;
+    /// Anisotropic phase: direction weights refitted to integrate harmonics exactly up to
+    /// degree 2K (HarmonicQuadrature.h); false keeps the cells' solid angles. Opt-in until the
+    /// default direction count follows the phase: at 303 directions the cells' aliasing
+    /// offsets part of the angular error (BENCHMARKS.md, "Harmonic weights").
+    bool harmonicWeights = false;
 };
 
 /// Where the incident sunlight went, as fractions of the incident power (after the last sweep).
@@ -199,6 +206,8 @@ private:
     const Cloud& mCloud;
     CloudTransferOptions mOptions;
     openvdb::Coord mCopies{1, 1, 1};
+    /// Degree to which the direction weights integrate harmonics exactly (0: the cells' own).
+    int mQuadratureDegree = 0;
     std::unique_ptr<Impl> mImpl;
     CloudBudget mBudget;
 };

@@ -392,4 +392,22 @@ DirectionSet::inverseHemisphereSums(const std::vector<openvdb::math::Vec3s>& nor
     return inv;
 }
 
+DirectionSet
+DirectionSet::withFactors(std::vector<double> factors) const
+{
+    double sum = 0.0;
+    bool positive = factors.size() == size();
+    for (double a : factors) {
+        positive = positive && a > 0.0 && std::isfinite(a);
+        sum += a;
+    }
+    if (!positive || !(std::abs(sum - 2.0) <= 1e-9)) {
+        OPENVDB_THROW(openvdb::ValueError, "direction factors must be one per pair (" << size()
+            << "), each > 0, adding up to 2; got " << factors.size() << " adding up to " << sum);
+    }
+    DirectionSet set = *this;
+    set.mFactors = std::move(factors);
+    return set;
+}
+
 } // namespace vdbrad

@@ -122,6 +122,10 @@ public:
     /// @throw openvdb::ValueError if @a n is zero (or not finite) or the set is empty.
     std::vector<double> normalisedWeights(const openvdb::math::Vec3d& n) const;
 
+    /// @brief This set with other pair factors (e.g. HarmonicQuadrature's).
+    /// @throw openvdb::ValueError unless there is one per pair, each > 0, adding up to 2 (1e-9)
+    DirectionSet withFactors(std::vector<double> factors) const;
+
 private:
     int mRadius = 0;
     std::vector<openvdb::math::Coord> mDirections;
