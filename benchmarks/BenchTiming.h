@@ -5,6 +5,8 @@
 #include <chrono>
 #include <functional>
 
+#include <sys/resource.h>
+
 namespace vdbrad {
 namespace bench {
 
@@ -20,6 +22,17 @@ timeIt(const std::function<void()>& f, int reps = 3)
             .count());
     }
     return best;
+}
+
+/// CPU seconds (user + sys, all threads) this process has used so far: what SHDOM's figures
+/// give, so a difference of two is comparable with them.
+inline double
+processCpuSeconds()
+{
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec)
+        + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
 } // namespace bench

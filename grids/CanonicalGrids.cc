@@ -644,6 +644,26 @@ slab(const BuildParams& in)
     return finishCloud(scene, vs, density, p.albedo);
 }
 
+// ---- step cloud --------------------------------------------------------------------------------
+
+openvdb::GridPtrVec
+stepCloud(const BuildParams& in)
+{
+    const std::string scene = "step-cloud";
+    const Params p = resolve(scene, in, 1.f, 0.f, 0.f, 0.f, 18.f);
+    if (!(p.tau > 0.f)) fail(scene, "tau " + str(p.tau) + " must be > 0");
+    if (p.res % 32 != 0) fail(scene, "res " + str(p.res) + " must be a multiple of 32 (columns)");
+    // Kilometres: 0.5 wide, 0.25 high, one voxel deep (the medium is uniform along z).
+    const int n = p.res, ny = n / 2, perColumn = n / 32;
+    const double vs = 0.5 / n;
+    const float thin = float(p.tau / 9.0 / 0.25), thick = float(p.tau / 0.25);
+    auto density = FloatGrid::create(0.f);
+    density->denseFill(CoordBBox(Coord(0), Coord(16 * perColumn - 1, ny - 1, 0)), thin, true);
+    density->denseFill(CoordBBox(Coord(16 * perColumn, 0, 0), Coord(n - 1, ny - 1, 0)), thick,
+        true);
+    return finishCloud(scene, vs, density, p.albedo);
+}
+
 // ---- cumulus -----------------------------------------------------------------------------------
 
 // Only integer hashing and + - * / sqrt (all exactly rounded in IEEE 754) feed the shape, so a
@@ -835,6 +855,7 @@ openvdb::GridPtrVec makeLamp(const BuildParams& p) { return lamp(p); }
 openvdb::GridPtrVec makeCornell(const BuildParams& p) { return cornell(p); }
 openvdb::GridPtrVec makeSlab(const BuildParams& p) { return slab(p); }
 openvdb::GridPtrVec makeCumulus(const BuildParams& p) { return cumulus(p); }
+openvdb::GridPtrVec makeStepCloud(const BuildParams& p) { return stepCloud(p); }
 
 const std::vector<Builder>&
 builders()
@@ -856,6 +877,9 @@ builders()
             "albedo 1; periodic in x and z", makeSlab},
         {"cumulus", "seeded procedural cumulus in the unit cube, centre-column optical path "
             "tau = 20, albedo 1; no closed-form answer", makeCumulus},
+        {"step-cloud", "I3RC step cloud (km): 32 columns over 0.5 x 0.25, optical thickness "
+            "tau / 9 = 2 then tau = 18, albedo 1, one voxel deep; periodic in x and z",
+            makeStepCloud},
     };
     return all;
 }

@@ -28,7 +28,8 @@ struct BuildParams
     float emission = -1.f;   ///< emitted radiosity of the emitters, >= 0
     float radius = -1.f;     ///< disk: emitter radius (world units)
     float height = -1.f;     ///< disk, plates: distance between emitter and receiver (world units)
-    float tau = -1.f;        ///< slab: vertical optical thickness; cumulus: optical diameter
+    float tau = -1.f;        ///< slab: vertical optical thickness; cumulus: optical diameter;
+                             ///< step-cloud: the thick columns' thickness
     unsigned seed = 1;       ///< cumulus: random seed of the procedural shape
 };
 
@@ -83,6 +84,13 @@ openvdb::GridPtrVec makeSlab(const BuildParams&);
 /// value-noise eroded, smooth edge, inside a unit cube; density scaled so that the optical path
 /// through the centre along the vertical is about tau (default 20).
 openvdb::GridPtrVec makeCumulus(const BuildParams&);
+
+/// @brief The step cloud of the Intercomparison of 3D Radiation Codes (I3RC, phase 1), in km:
+/// 32 columns of 0.015625 over a period of 0.5 along x, 0.25 high (y up), uniform along z (one
+/// voxel deep); the first 16 columns of vertical optical thickness tau / 9, the last 16 of tau
+/// (default 18: 2 and 18). res: voxels along x, a multiple of 32; res / 2 layers. Meant for
+/// periodic boundaries.
+openvdb::GridPtrVec makeStepCloud(const BuildParams&);
 
 /// One named builder: what `vdbrad make NAME` lists.
 struct Builder

@@ -117,7 +117,8 @@ commands()
                 OptionSpec{"height", OptionType::Float, "scene's", "0.25",
                     "disk, plates: emitter-receiver distance, world units"}.atLeast(0),
                 OptionSpec{"tau", OptionType::Float, "scene's", "10",
-                    "slab: vertical optical thickness; cumulus: optical diameter"}.atLeast(0),
+                    "slab: vertical optical thickness; cumulus: optical diameter; step-cloud: "
+                    "the thick columns' (the thin ones': tau / 9)"}.atLeast(0),
                 OptionSpec{"seed", OptionType::Int, "1", "7", "cumulus: shape seed"}.atLeast(0),
                 kQuiet},
             {"vdbrad make cornell cornell.vdb --res 128",

@@ -148,7 +148,8 @@ floodFill(const std::set<Coord>& shell, const Coord& seed, bool& leaked)
 TEST(Builders, ListNamesDocsAndContract)
 {
     const std::vector<std::string> names{
-        "furnace-box", "furnace-sphere", "disk", "plates", "lamp", "cornell", "slab", "cumulus"};
+        "furnace-box", "furnace-sphere", "disk", "plates", "lamp", "cornell", "slab", "cumulus",
+        "step-cloud"};
     const auto& all = vg::builders();
     ASSERT_EQ(all.size(), names.size());
     for (std::size_t b = 0; b < names.size(); ++b) {
@@ -156,8 +157,9 @@ TEST(Builders, ListNamesDocsAndContract)
         EXPECT_FALSE(all[b].doc.empty());
         EXPECT_EQ(all[b].doc.find('\n'), std::string::npos) << "doc must be one line";
         ASSERT_EQ(vg::findBuilder(names[b]), &all[b]);
-        const auto grids = all[b].build(withRes(16));
-        if (names[b] == "slab" || names[b] == "cumulus") {
+        // The step cloud's 32 columns need a multiple of 32 voxels.
+        const auto grids = all[b].build(withRes(names[b] == "step-cloud" ? 32 : 16));
+        if (names[b] == "slab" || names[b] == "cumulus" || names[b] == "step-cloud") {
             ASSERT_EQ(grids.size(), 2u);
             auto density = grid<FloatGrid>(grids, "density");
             auto albedo = grid<FloatGrid>(grids, "albedo");
@@ -738,10 +740,32 @@ TEST(Cumulus, DeterministicFiniteAndScaled)
 
 // ---- parameter validation ----------------------------------------------------------------------
 
+TEST(StepCloud, ColumnsHaveTheirOpticalThickness)
+{
+    // I3RC's step cloud: 16 columns of 2 then 16 of 18 over 0.5 km, 0.25 km thick.
+    for (int res : {32, 64}) {
+        vg::BuildParams p = withRes(res);
+        const auto grids = vg::makeStepCloud(p);
+        auto density = grid<FloatGrid>(grids, "density");
+        ASSERT_TRUE(density);
+        EXPECT_EQ(density->activeVoxelCount(), openvdb::Index64(res * (res / 2)));
+        const double vs = density->voxelSize()[0];
+        EXPECT_NEAR(vs, 0.5 / res, 1e-15);
+        EXPECT_NEAR(vs * (res / 2), 0.25, 1e-15);
+        auto acc = density->getConstAccessor();
+        for (int i = 0; i < res; ++i) {
+            double path = 0.0;
+            for (int j = -1; j <= res / 2; ++j) path += acc.getValue(Coord(i, j, 0)) * vs;
+            ASSERT_NEAR(path / (i < res / 2 ? 2.0 : 18.0), 1.0, 1e-5) << i;
+            EXPECT_EQ(acc.getValue(Coord(i, 0, 1)), 0.f);   // one voxel deep
+        }
+    }
+}
+
 TEST(Params, BadValuesThrow)
 {
     auto throws = [](const std::string& scene, auto edit) {
-        vg::BuildParams p = withRes(16);
+        vg::BuildParams p = withRes(scene == "step-cloud" ? 32 : 16);
         edit(p);
         EXPECT_THROW(vg::findBuilder(scene)->build(p), openvdb::ValueError) << scene;
     };
@@ -762,6 +786,8 @@ TEST(Params, BadValuesThrow)
     throws("plates", [](vg::BuildParams& p) { p.height = 0.f; });
     throws("slab", [](vg::BuildParams& p) { p.tau = 0.f; });
     throws("cumulus", [](vg::BuildParams& p) { p.tau = 0.f; });
+    throws("step-cloud", [](vg::BuildParams& p) { p.tau = 0.f; });
+    throws("step-cloud", [](vg::BuildParams& p) { p.res = 48; });   // not a multiple of 32
     EXPECT_THROW(vg::diskIrradiance(1, 1, 0, 0), openvdb::ValueError);
     EXPECT_THROW(vg::rectangleFactor(0, 1, 0, 1, 0), openvdb::ValueError);
     EXPECT_THROW(vg::parallelSquaresViewFactor(0, 1), openvdb::ValueError);

@@ -1,0 +1,106 @@
+// The I3RC step cloud (grids::makeStepCloud: 32 periodic columns over 0.5 km, 0.25 km thick,
+// optical thickness 2 and 18, Henyey-Greenstein g = 0.85, black ground) solved by the cloud
+// sweeps, against a photon Monte Carlo of the same columns run in this process
+// (tests/CloudReference.h columnsMonteCarlo: delta tracking, no code shared with the sweeps).
+// The issue's four experiments: sun at 0 and 60 degrees (azimuth 0: photons travel towards +x,
+// from the thin columns into the thick), single-scattering albedo 1 and 0.99. Prints domain
+// reflectance and transmittance, their errors, the energy balance, sweeps and the process's CPU
+// time (user + sys, getrusage) of each solve, the quantity SHDOM's figures give.
+//
+//   build/benchmarks/bench_stepcloud [res=64] (voxels along x, a multiple of 32; res / 2 layers)
+//       [directions=300] [source=constant|linear] [weights=cells|harmonic]
+//       [accelerate=none|anderson] [photons=2000000] (0: no Monte Carlo) [order=8]
+//       [experiments=0:1,0:0.99,60:1,60:0.99] (zenith:omega0, comma-separated)
+//       [minPeriod=-1] (CloudTransferOptions::minPeriod: copies along the one-voxel depth)
+#include "vdbrad/Cloud.h"
+#include "vdbrad/CloudTransfer.h"
+
+#include "BenchTiming.h"
+
+#include "../grids/CanonicalGrids.h"
+#include "../tests/CloudReference.h"
+
+#include <openvdb/openvdb.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+int
+main(int argc, char** argv)
+{
+    openvdb::initialize();
+    const int res = argc > 1 ? std::atoi(argv[1]) : 64;
+    const int dirs = argc > 2 ? std::atoi(argv[2]) : 300;
+    const bool linear = argc > 3 && std::string(argv[3]) == "linear";
+    const bool harmonic = argc > 4 && std::string(argv[4]) == "harmonic";
+    const bool anderson = argc > 5 && std::string(argv[5]) == "anderson";
+    const long photons = argc > 6 ? std::atol(argv[6]) : 2000000;
+    const int order = argc > 7 ? std::atoi(argv[7]) : 8;
+    const std::string list = argc > 8 ? argv[8] : "0:1,0:0.99,60:1,60:0.99";
+    const int minPeriod = argc > 9 ? std::atoi(argv[9]) : -1;
+    std::vector<std::pair<double, double>> experiments;
+    for (size_t at = 0; at < list.size();) {
+        const size_t comma = std::min(list.find(',', at), list.size());
+        const std::string item = list.substr(at, comma - at);
+        const size_t colon = item.find(':');
+        experiments.emplace_back(std::atof(item.substr(0, colon).c_str()),
+            std::atof(item.substr(colon + 1).c_str()));
+        at = comma + 1;
+    }
+    std::printf("step cloud res %d (%d x %d x 1 voxels), %d directions asked, order %d, %s "
+        "source, %s weights, %s, Monte Carlo %ld photons\n", res, res, res / 2, dirs, order,
+        linear ? "linear" : "constant", harmonic ? "harmonic" : "cell",
+        anderson ? "Anderson" : "plain", photons);
+    std::printf("%6s %6s %9s %9s %8s %9s %9s %8s %10s %6s %8s %8s %s\n", "sun", "omega0",
+        "R", "R MC", "error", "T", "T MC", "error", "balance", "sweeps", "CPU s", "wall s",
+        "copies");
+    for (const auto& [zenith, omega0] : experiments) {
+        vdbrad::grids::BuildParams params;
+        params.res = res;
+        params.albedo = float(omega0);
+        const vdbrad::Cloud cloud = vdbrad::buildCloud(vdbrad::grids::makeStepCloud(params));
+        vdbrad::CloudTransferOptions o;
+        o.periodic = true;
+        o.directions = dirs;
+        o.sunZenith = zenith;
+        o.sunAzimuth = 0.0;
+        o.phase = vdbrad::PhaseFunction::henyeyGreenstein(0.85);
+        o.phaseOrder = order;
+        o.source = linear ? vdbrad::VoxelSource::Linear : vdbrad::VoxelSource::Constant;
+        o.harmonicWeights = harmonic;
+        o.accelerate = anderson ? vdbrad::Acceleration::Anderson : vdbrad::Acceleration::None;
+        o.minPeriod = minPeriod;
+        const double cpu0 = vdbrad::bench::processCpuSeconds();
+        const auto t0 = std::chrono::steady_clock::now();
+        vdbrad::CloudTransfer transfer(cloud, o);
+        transfer.solve();
+        const double wall =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double cpu = vdbrad::bench::processCpuSeconds() - cpu0;
+        const vdbrad::CloudBudget& b = transfer.budget();
+        vdbrad::test::SlabResult mc;
+        if (photons > 0) {
+            vdbrad::test::ColumnsProblem p;
+            for (int c = 0; c < 32; ++c) p.columnTau.push_back(c < 16 ? 2.0 : 18.0);
+            p.omega0 = omega0, p.g = 0.85, p.theta0 = zenith, p.phi0 = 0.0;
+            vdbrad::test::MonteCarloRun run;
+            run.photons = uint64_t(photons);
+            run.seed = 7;
+            mc = vdbrad::test::columnsMonteCarlo(p, run);
+        }
+        const openvdb::Coord& k = transfer.copies();
+        std::printf("%6.0f %6.3f %9.5f %9.5f %7.2f%% %9.5f %9.5f %7.2f%% %10.2e %6d %8.2f %8.2f "
+            "%dx%dx%d   (MC stderr R %.5f T %.5f; direct T %.5f, MC %.5f)\n", zenith, omega0, b.albedo, mc.reflectance,
+            photons > 0 ? 100.0 * (b.albedo / mc.reflectance - 1.0) : 0.0, b.transmittance,
+            mc.transmittance,
+            photons > 0 ? 100.0 * (b.transmittance / mc.transmittance - 1.0) : 0.0, b.balance(),
+            transfer.iterationCount(), cpu, wall, k.x(), k.y(), k.z(), mc.reflectanceStderr,
+            mc.transmittanceStderr, b.directTransmittance, mc.directTransmittance);
+        std::fflush(stdout);
+    }
+    return 0;
+}
