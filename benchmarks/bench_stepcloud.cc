@@ -11,7 +11,8 @@
 //       [directions=300] [source=constant|linear] [weights=cells|harmonic]
 //       [accelerate=none|anderson] [photons=2000000] (0: no Monte Carlo) [order=8]
 //       [experiments=0:1,0:0.99,60:1,60:0.99] (zenith:omega0, comma-separated)
-//       [minPeriod=-1] (CloudTransferOptions::minPeriod: copies along the one-voxel depth)
+//       [minPeriod=-1] (CloudTransferOptions::minPeriod; the one-voxel depth along z is swept
+//       in the x-y plane, never copied)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 

@@ -228,7 +228,8 @@ commands()
                     "--periodic: solve a box narrower than this many voxels (0 to 4096) as "
                     "copies side by side (light wrapping a narrow box rises by whole layers: "
                     "thin slabs over-absorb); auto: sqrt(directions) / 2, fewer where the box "
-                    "is optically thick; 0: never"},
+                    "is optically thick; 0: never. A box one voxel deep along a horizontal "
+                    "axis is a 2D medium, swept in the plane of the other two, never copied"},
                 OptionSpec{"albedo", OptionType::Float, "1", "0.99",
                     "single-scattering albedo where the file has no `albedo` grid"}.within(0, 1),
                 OptionSpec{"g", OptionType::Float, "0", "0.85",

@@ -110,6 +110,9 @@ struct CloudTransfer::Impl
     // that left each face per layer in the last sweep, carried over to the next.
     std::unique_ptr<PeriodicBoundary> boundary;
     std::vector<double> leftFace;
+    // Axes along which a periodic box is one voxel deep: lines are swept in the plane of the
+    // others (sweptLine()).
+    FlatAxes flat{};
 
     // The sweeps of one iteration: every group's directions, from the sources S (n x M moments'
     // coefficients) and B (the beam's first scattering) in each pattern's order, into the
@@ -231,7 +234,9 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         }
     }
     if (options.periodic) {
-        impl.boundary.reset(new PeriodicBoundary(cloud.voxels().bbox(), up, schedule));
+        impl.flat = PeriodicBoundary::flatAxes(cloud.voxels().bbox().dim(), up);
+        impl.boundary.reset(new PeriodicBoundary(cloud.voxels().bbox(), up, schedule,
+            impl.flat));
         impl.leftFace.assign(impl.boundary->size(), 0.0);
     }
     // The moments and the light carried across periodic side faces (see iterate()).
@@ -240,13 +245,15 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     // weight Omega (Y_00^2 of both senses) the sweeps use.
     {
         std::vector<double> weight(dirs);
+        std::vector<float> step(dirs);
         const size_t M = size_t(impl.M);
         const std::vector<float>& y = impl.phase.harmonics;
         for (size_t d = 0; d < dirs; ++d) {
             const double y0 = y[2 * d * M], y1 = y[(2 * d + 1) * M];
             weight[d] = double(float(kPi * schedule.directions().factor(d))) * (y0 * y0 + y1 * y1);
+            step[d] = sweptLine(schedule.directions().direction(d), impl.flat).step;
         }
-        impl.escape = meanEscapeFactors(impl.kappa, schedule.directions(), weight);
+        impl.escape = meanEscapeFactors(impl.kappa, step, weight);
     }
     mIteration.addSeconds(
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
@@ -292,11 +299,13 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
     std::vector<float>& G = sw.G[size_t(g)];
     std::array<double, 2>& escaped = sw.escaped[size_t(g)];
     const int up = t.mOptions.up;
-    const Coord& sigma = schedule->directions().direction(d);
-    const Vec3d unit = schedule->directions().unit(d);
-    // A naive line's step, in voxels, and its tube's etendue (cross-section 1 / step voxel
-    // faces times the solid angle of one orientation).
-    const float step = stepLength(sigma);
+    // The line swept (the direction's own, or its projection across flat axes), its step in
+    // voxels and its tube's etendue (cross-section 1 / step voxel faces times the solid angle
+    // of one orientation).
+    const SweptLine line = sweptLine(schedule->directions().direction(d), flat);
+    const Coord& sigma = line.sigma;
+    const Vec3d& unit = line.unit;
+    const float step = line.step;
     const float omega = float(kPi * schedule->directions().factor(d));
     const double etendue = double(omega) / double(step);
     // Periodic: power entering each side face per layer (what left the opposite face), and
@@ -362,6 +371,8 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
                         }
                     }
                 }
+                // An isolated line holds one voxel: nothing comes in from the one before.
+                if (line.isolated) ray.radiance = 0.f;
                 const size_t sense = forward ? 0 : 1;
                 const float* y = yAcc[sense];
                 // The source: its isotropic part s0, its higher moments' part r and the beam's
@@ -401,7 +412,8 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
                             finish(lin, ray, ray.s, ray.r, ray.b, forward ? 0 : 1, nullptr);
                         }
                     }
-                    if (!ray.started || ray.radiance == 0.f) continue;
+                    // (An isolated line's tube has no cross-section: nothing leaves it.)
+                    if (!ray.started || ray.radiance == 0.f || line.isolated) continue;
                     const double power = double(ray.radiance) * etendue;
                     if (periodic) {
                         const int at = periodic->leaving(part, sigma,
@@ -419,7 +431,7 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, Swe
     };
     if (linear) pass(true, std::true_type());
     else pass(true, std::false_type());
-    if (periodic) {
+    if (periodic && !line.isolated) {
         periodic->followWraps(d, periodic->rise(schedule->directions(), d), unit[up], entry,
             exits, [&] { pass(false, std::false_type()); }, &sw.leftNow[periodic->slice(d)], escaped);
     }
@@ -632,10 +644,10 @@ CloudTransfer::fingerprint() const
     h = hashBytes(impl.deposited.data(), impl.deposited.size() * sizeof(double), h);
     h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
     h = hashBytes(impl.phase.beam.data(), impl.phase.beam.size() * sizeof(float), h);
-    const int64_t options[12] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
+    const int64_t options[13] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
         mOptions.phaseOrder, int64_t(mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
         impl.M, mCopies.x(), mCopies.y(), mCopies.z(), int64_t(mOptions.source),
-        mQuadratureDegree};
+        mQuadratureDegree, impl.flat[0] + 2 * impl.flat[1] + 4 * impl.flat[2]};
     return hashBytes(options, sizeof options, h);
 }
 
@@ -718,6 +730,13 @@ CloudTransfer::describe() const
     if (mCopies != Coord(1)) {
         os << " (solved as " << mCopies.x() << " x " << mCopies.y() << " x " << mCopies.z()
            << " copies of the box)";
+    }
+    const FlatAxes& flat = mImpl->flat;
+    if (flat[0] || flat[1] || flat[2]) {
+        const char* axis = "xyz";
+        os << " (one voxel deep along";
+        for (int k = 0; k < 3; ++k) if (flat[size_t(k)]) os << ' ' << axis[k];
+        os << ": swept across it)";
     }
     if (mQuadratureDegree > 0) {
         os << ", weights exact for harmonics to degree " << mQuadratureDegree;

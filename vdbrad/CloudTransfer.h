@@ -54,7 +54,12 @@
 // fraction, and light on directions that round to no rise is trapped until it interacts; the
 // narrower the box, the more directions that catches (figures: BENCHMARKS.md). The copies are
 // the same medium (a period of the box is one of the tiling), so the result is the mean over
-// them.
+// them. A periodic box one voxel deep along a horizontal axis is a medium that does not vary
+// along it (a 2D cloud such as the I3RC step cloud), and neither does its radiance: each
+// direction is swept as its projection on the plane of the other axes, with the 3D path per
+// step (sweptLine(), VoxelStep.h) — exact along that axis, without copies, and what wraps
+// crosses the other axis' faces only. One voxel deep along both horizontal axes is a plane-
+// parallel medium, swept along the vertical alone: the discrete-ordinates slab.
 //
 // Anisotropic scattering (PhaseFunction.h): the sweeps accumulate the radiance's spherical-
 // harmonic moments I_lm up to order K instead of J alone, and a voxel's source in direction s is

@@ -62,7 +62,7 @@ stepAlong(const LinePartition& part, const Coord& sigma, const Coord& c, int dir
 } // namespace
 
 PeriodicBoundary::PeriodicBoundary(const openvdb::CoordBBox& box, int up,
-    const SweepSchedule& schedule)
+    const SweepSchedule& schedule, const FlatAxes& flat)
     : mLo(box.min().asVec3d() - Vec3d(0.5))
     , mHi(box.max().asVec3d() + Vec3d(0.5))
     , mMin(box.min())
@@ -70,6 +70,7 @@ PeriodicBoundary::PeriodicBoundary(const openvdb::CoordBBox& box, int up,
     , mUp(up)
     , mLayers(box.max()[up] - box.min()[up] + 1)
     , mLayer0(box.min()[up])
+    , mFlat(flat)
 {
     const DirectionSet& dirs = schedule.directions();
     mEnterCount.assign(dirs.size() * sliceSize(), 0);
@@ -80,8 +81,9 @@ PeriodicBoundary::PeriodicBoundary(const openvdb::CoordBBox& box, int up,
     schedule.forEachGroup(none, "periodic boundary", [](int) { return true; }, [&](int g) {
         const SweepSchedule::Pattern& pattern = schedule.patternOfGroup(g);
         schedule.forDirections(g, [&](size_t d) {
-            const Coord& sigma = dirs.direction(d);
-            const Vec3d unit = dirs.unit(d);
+            const SweptLine line = sweptLine(dirs.direction(d), mFlat);
+            const Coord& sigma = line.sigma;
+            const Vec3d& unit = line.unit;
             const LinePartition part = partition(sigma);
             pattern.sweep->walk(sigma, schedule.reversed(d), lanes.local(),
                 [&](uint32_t x, Started& line, bool forward) {
@@ -96,6 +98,14 @@ PeriodicBoundary::PeriodicBoundary(const openvdb::CoordBBox& box, int up,
     });
 }
 
+FlatAxes
+PeriodicBoundary::flatAxes(const Coord& dim, int up)
+{
+    FlatAxes flat{};
+    for (int k = 0; k < 3; ++k) flat[size_t(k)] = k != up && dim[k] == 1;
+    return flat;
+}
+
 Coord
 PeriodicBoundary::copies(const Coord& dim, int up, int minPeriod, size_t directions,
     double depth)
@@ -103,8 +113,9 @@ PeriodicBoundary::copies(const Coord& dim, int up, int minPeriod, size_t directi
     Coord copies(1);
     const int width = minPeriod > 0 ? minPeriod
         : int(std::ceil(0.5 * std::sqrt(double(directions))));
+    const FlatAxes flat = flatAxes(dim, up);
     for (int k = 0; k < 3; ++k) {
-        if (k == up || dim[k] >= width) continue;
+        if (k == up || flat[size_t(k)] || dim[k] >= width) continue;
         int c = (width + dim[k] - 1) / dim[k];
         if (minPeriod < 0 && depth > 0.0) {
             c = int(std::min<double>(c, std::max(1.0, std::ceil(8.0 / (depth * dim[k])))));
@@ -197,8 +208,14 @@ PeriodicBoundary::rise(const DirectionSet& directions, size_t d) const
     const double w1 = mMax[a1] - mMin[a1] + 1;
     const double w2 = mMax[a2] - mMin[a2] + 1;
     // Mean chord of the box's cross-section along the direction: its area over its width seen
-    // from the direction.
-    const double chord = w1 * w2 / (w1 * std::abs(unit[a2]) + w2 * std::abs(unit[a1]));
+    // from the direction. Across a flat axis nothing wraps (the lines are swept in the plane
+    // of the others): the chord is then the other axis' width over the slope along it, and a
+    // direction along flat axes only never leaves its voxel.
+    const bool f1 = mFlat[size_t(a1)], f2 = mFlat[size_t(a2)];
+    if ((f1 || unit[a1] == 0.0) && (f2 || unit[a2] == 0.0)) return 0.0;
+    const double chord = f1 ? w2 / std::abs(unit[a2])
+        : f2 ? w1 / std::abs(unit[a1])
+        : w1 * w2 / (w1 * std::abs(unit[a2]) + w2 * std::abs(unit[a1]));
     // The cell spans elevations up to beta = sqrt(Omega) / 2 either way; its half's mean slope
     // is tan(beta / 2).
     const double beta = 0.5 * std::sqrt(kPi * directions.factor(d));

@@ -23,6 +23,7 @@
 #include "vdbrad/DirectionSet.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/SweepSchedule.h"
+#include "vdbrad/VoxelStep.h"
 
 #include <openvdb/openvdb.h>
 
@@ -39,16 +40,24 @@ public:
     /// carried over to the next iteration.
     static constexpr int kMaxWraps = 64;
 
-    /// @brief The side faces of @a box (index space), @a up the vertical axis; counts the lines
-    /// of every direction of @a schedule entering through each face and layer (a walk per
+    /// @brief The side faces of @a box (index space), @a up the vertical axis, the medium
+    /// swept in the plane of the other axes along the @a flat ones (sweptLine()); counts the
+    /// lines of every direction of @a schedule entering through each face and layer (a walk per
     /// direction: geometry only).
-    PeriodicBoundary(const openvdb::CoordBBox& box, int up, const SweepSchedule& schedule);
+    PeriodicBoundary(const openvdb::CoordBBox& box, int up, const SweepSchedule& schedule,
+        const FlatAxes& flat = FlatAxes{});
+
+    /// @brief The horizontal axes along which a periodic box of @a dim voxels is one voxel
+    /// deep: its medium repeats every voxel along them, so it is swept in the plane of the
+    /// other axes (sweptLine()), exactly and without copies.
+    static FlatAxes flatAxes(const openvdb::Coord& dim, int up);
 
     /// @brief How many copies of a box of @a dim voxels to solve side by side along each axis
     /// (CloudTransferOptions::minPeriod): along each horizontal axis narrower than
     /// @a minPeriod voxels (-1: ceil(sqrt(directions) / 2)), enough to be that wide, and with
     /// -1 no more than make one period 8 mean optical depths wide (@a depth: the box's mean
-    /// optical depth per voxel; light crossing such a period horizontally is gone).
+    /// optical depth per voxel; light crossing such a period horizontally is gone). None along
+    /// flat axes (flatAxes()).
     static openvdb::Coord copies(const openvdb::Coord& dim, int up, int minPeriod,
         size_t directions, double depth);
 
@@ -75,6 +84,8 @@ public:
 
     /// Layers a horizontal direction's half cells drift per wrap (0 for other directions).
     double rise(const DirectionSet& directions, size_t d) const;
+    /// The flat axes the lines are swept across (sweptLine()).
+    const FlatAxes& flat() const { return mFlat; }
 
     /// @brief What left the side faces (@a exits, one slice of direction @a d, times @a share)
     /// enters through the opposite faces: added to @a into; what no line enters, or what
@@ -130,6 +141,7 @@ private:
     openvdb::Vec3d mLo, mHi;
     openvdb::Coord mMin, mMax;
     int mUp = 1, mLayers = 0, mLayer0 = 0;
+    FlatAxes mFlat{};
     std::vector<uint32_t> mEnterCount;
 };
 

@@ -12,10 +12,9 @@
 // cloud solver's self-scattering elimination divides by 1 - omega0 (1 - M_v).
 #pragma once
 
-#include "vdbrad/DirectionSet.h"
-
 #include <openvdb/openvdb.h>
 
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <vector>
@@ -59,23 +58,36 @@ linearSourceGain(float tau, float& perTau)
     return tau * perTau;
 }
 
-// A naive line of direction sigma advances one voxel per step along its major axis: the step is
-// |sigma| / max_k |sigma_k| voxels long (float: the sweeps' and the self-scattering factors'
-// optical depths must be the same numbers).
-inline float
-stepLength(const openvdb::Coord& sigma)
+/// Axes along which the medium does not vary (a periodic box one voxel deep): flat[k].
+using FlatAxes = std::array<bool, 3>;
+
+/// @brief How direction @a sigma is swept through a medium that does not vary along the
+/// @a flat axes. Without them: sigma's own naive line, one voxel per step of its major axis, a
+/// step of |sigma| / max_k |sigma_k| voxels (float: the sweeps' and the self-scattering
+/// factors' optical depths must be the same numbers). Along a flat axis the radiance does not
+/// vary either, so a 3D line is swept as its projection: the naive line of sigma with the flat
+/// components zeroed (reduced by their gcd), each of its steps a 3D path of |sigma| / max over
+/// the other axes of |sigma_k| voxels. A direction with only flat components (its projection
+/// is a point) stays in the same voxel's medium forever: its lines are `isolated`, one voxel
+/// each and infinitely long (the radiance starts from zero in every voxel); the sigma swept is
+/// then +1 along the first other axis (a zero component of sigma takes its pattern's sign, so
+/// that sign always matches the visiting order).
+struct SweptLine
 {
-    const int major = std::abs(sigma.x()) >= std::abs(sigma.y())
-        ? (std::abs(sigma.x()) >= std::abs(sigma.z()) ? 0 : 2)
-        : (std::abs(sigma.y()) >= std::abs(sigma.z()) ? 1 : 2);
-    return float(sigma.asVec3d().length() / std::abs(sigma[major]));
-}
+    openvdb::Coord sigma;   ///< the digital line swept
+    openvdb::Vec3d unit;    ///< its unit vector (which side faces and layers it crosses)
+    float step = 1.f;       ///< 3D path per step, voxels (kIsolatedStep if isolated)
+    bool isolated = false;
+};
+/// An isolated line's step: any voxel with extinction is opaque along it, a clear one clear.
+constexpr float kIsolatedStep = 1e30f;
+SweptLine sweptLine(const openvdb::Coord& sigma, const FlatAxes& flat = FlatAxes{});
 
 /// @brief Per voxel of optical depth per voxel length @a kappa, the mean escape factor
-/// sum_d weight[d] f(kappa stepLength(sigma_d)), from the sweeps' own float factors (so that
-/// the elimination matches the sweeps exactly); voxels of equal kappa in a row share one sum
-/// (a homogeneous cloud computes it once per range).
+/// sum_d weight[d] f(kappa step[d]), from the sweeps' own float factors (so that the
+/// elimination matches the sweeps exactly); voxels of equal kappa in a row share one sum (a
+/// homogeneous cloud computes it once per range).
 std::vector<double> meanEscapeFactors(const std::vector<float>& kappa,
-    const DirectionSet& directions, const std::vector<double>& weight);
+    const std::vector<float>& step, const std::vector<double>& weight);
 
 } // namespace vdbrad
