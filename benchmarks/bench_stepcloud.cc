@@ -8,8 +8,9 @@
 // time (user + sys, getrusage) of each solve, the quantity SHDOM's figures give.
 //
 //   build/benchmarks/bench_stepcloud [res=64] (voxels along x, a multiple of 32; res / 2 layers)
-//       [directions=300] [source=constant|linear] [weights=cells|harmonic]
-//       [accelerate=none|anderson] [photons=2000000] (0: no Monte Carlo) [order=8]
+//       [directions=auto] [source=linear|constant] [weights=harmonic|cells]
+//       [accelerate=auto|none|anderson] (auto, or left out: CloudTransferOptions' defaults)
+//       [photons=2000000] (0: no Monte Carlo) [order=8]
 //       [experiments=0:1,0:0.99,60:1,60:0.99] (zenith:omega0, comma-separated)
 //       [minPeriod=-1] (CloudTransferOptions::minPeriod; the one-voxel depth along z is swept
 //       in the x-y plane, never copied)
@@ -35,10 +36,14 @@ main(int argc, char** argv)
 {
     openvdb::initialize();
     const int res = argc > 1 ? std::atoi(argv[1]) : 64;
-    const int dirs = argc > 2 ? std::atoi(argv[2]) : 300;
-    const bool linear = argc > 3 && std::string(argv[3]) == "linear";
-    const bool harmonic = argc > 4 && std::string(argv[4]) == "harmonic";
-    const bool anderson = argc > 5 && std::string(argv[5]) == "anderson";
+    // Unset arguments (or "auto") leave CloudTransferOptions' defaults.
+    auto arg = [&](int i) { return argc > i ? std::string(argv[i]) : std::string("auto"); };
+    const int dirs = arg(2) == "auto" ? 0 : std::atoi(argv[2]);
+    const vdbrad::CloudTransferOptions defaults;
+    const bool linear = arg(3) == "auto" ? defaults.source == vdbrad::VoxelSource::Linear
+                                         : arg(3) == "linear";
+    const bool harmonic = arg(4) == "auto" ? defaults.harmonicWeights : arg(4) == "harmonic";
+    const std::string accelerate = arg(5);
     const long photons = argc > 6 ? std::atol(argv[6]) : 2000000;
     const int order = argc > 7 ? std::atoi(argv[7]) : 8;
     const std::string list = argc > 8 ? argv[8] : "0:1,0:0.99,60:1,60:0.99";
@@ -52,10 +57,10 @@ main(int argc, char** argv)
             std::atof(item.substr(colon + 1).c_str()));
         at = comma + 1;
     }
-    std::printf("step cloud res %d (%d x %d x 1 voxels), %d directions asked, order %d, %s "
-        "source, %s weights, %s, Monte Carlo %ld photons\n", res, res, res / 2, dirs, order,
-        linear ? "linear" : "constant", harmonic ? "harmonic" : "cell",
-        anderson ? "Anderson" : "plain", photons);
+    std::printf("step cloud res %d (%d x %d x 1 voxels), %s directions asked, order %d, %s "
+        "source, %s weights, acceleration %s, Monte Carlo %ld photons\n", res, res, res / 2,
+        arg(2).c_str(), order, linear ? "linear" : "constant", harmonic ? "harmonic" : "cell",
+        accelerate.c_str(), photons);
     std::printf("%6s %6s %9s %9s %8s %9s %9s %8s %10s %6s %8s %8s %s\n", "sun", "omega0",
         "R", "R MC", "error", "T", "T MC", "error", "balance", "sweeps", "CPU s", "wall s",
         "copies");
@@ -73,7 +78,7 @@ main(int argc, char** argv)
         o.phaseOrder = order;
         o.source = linear ? vdbrad::VoxelSource::Linear : vdbrad::VoxelSource::Constant;
         o.harmonicWeights = harmonic;
-        o.accelerate = anderson ? vdbrad::Acceleration::Anderson : vdbrad::Acceleration::None;
+        if (accelerate != "auto") o.accelerate = vdbrad::accelerationFromString(accelerate);
         o.minPeriod = minPeriod;
         const double cpu0 = vdbrad::bench::processCpuSeconds();
         const auto t0 = std::chrono::steady_clock::now();

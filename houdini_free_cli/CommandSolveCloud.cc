@@ -5,13 +5,35 @@
 #include "ToolSupport.h"
 
 #include "vdbrad/CloudTransfer.h"
+#include "vdbrad/DirectionSet.h"
 #include "vdbrad/vdbrad.h"
 
 #include <cstdlib>
 #include <iostream>
+#include <optional>
+#include <string>
 
 namespace vdbrad {
 namespace cli {
+
+namespace {
+
+// Option @a name: "auto" (nullopt) or an integer in [lo, hi] (@a what it counts).
+std::optional<int>
+autoOrCount(const Arguments& a, const char* name, long lo, long hi, const char* what)
+{
+    const std::string text = a.getString(name);
+    if (text == "auto") return std::nullopt;
+    char* end = nullptr;
+    const long v = std::strtol(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || v < lo || v > hi) {
+        throw UsageError("--" + std::string(name) + " must be auto or " + what + " in ["
+            + std::to_string(lo) + ", " + std::to_string(hi) + "], got '" + text + "'");
+    }
+    return int(v);
+}
+
+} // namespace
 
 int
 runSolveCloud(const Arguments& a)
@@ -30,21 +52,14 @@ runSolveCloud(const Arguments& a)
     o.up = choice<int>(a, "up", {{"x", 0}, {"y", 1}, {"z", 2}});
     o.periodic = a.flag("periodic");
     {
-        const std::string period = a.getString("min-period");
-        if (period != "auto") {
-            char* end = nullptr;
-            const long v = std::strtol(period.c_str(), &end, 10);
-            if (period.empty() || *end != '\0' || v < 0 || v > 4096) {
-                throw UsageError("--min-period must be auto or a voxel count in [0, 4096], got '"
-                    + period + "'");
-            }
-            o.minPeriod = int(v);
-        }
+        if (const auto v = autoOrCount(a, "min-period", 0, 4096, "a voxel count")) o.minPeriod = *v;
         if (a.has("min-period") && !o.periodic) {
             throw UsageError("--min-period applies to --periodic boxes only");
         }
     }
-    o.directions = a.getInt("directions");
+    if (const auto v = autoOrCount(a, "directions", 1, long(DirectionSet::maxCount()), "a count")) {
+        o.directions = *v;
+    }
     o.maxIterations = a.getInt("iterations");
     o.tolerance = a.getFloat("tolerance");
     o.irradiance = a.getFloat("irradiance");
@@ -62,7 +77,9 @@ runSolveCloud(const Arguments& a)
         o.phase = PhaseFunction::henyeyGreenstein(a.getFloat("g"));
     }
     o.phaseOrder = a.getInt("phase-order");
-    o.accelerate = accelerationFromString(a.getString("accelerate"));
+    if (a.getString("accelerate") != "auto") {
+        o.accelerate = accelerationFromString(a.getString("accelerate"));
+    }
     o.source = choice<VoxelSource>(a, "voxel-source",
         {{"constant", VoxelSource::Constant}, {"linear", VoxelSource::Linear}});
     o.harmonicWeights = a.getString("weights") == "harmonic";

@@ -26,6 +26,13 @@ const OptionSpec kAccelerate = OptionSpec{"accelerate", OptionType::String, "non
     "anderson: Anderson mixing of the last --anderson-depth iterates (for albedos near 1 and "
     "optically thick clouds: tens of sweeps instead of thousands)"}
     .oneOf({toString(Acceleration::None), toString(Acceleration::Anderson)});
+// solve-cloud chooses by default (CloudTransfer::chooseAcceleration).
+const OptionSpec kCloudAccelerate = OptionSpec{"accelerate", OptionType::String, "auto", "none",
+    "anderson: Anderson mixing of the last --anderson-depth iterates (tens of sweeps instead of "
+    "hundreds in optically thick, conservative clouds; 2 x depth + 2 copies of the moments); "
+    "auto: anderson where the thickest column's plain sweeps would decay slower than 1/2 per "
+    "sweep (omega0 tau / (tau + 2) > 1/2, delta-M scaled), else none"}
+    .oneOf({"auto", toString(Acceleration::None), toString(Acceleration::Anderson)});
 const OptionSpec kAndersonDepth = OptionSpec{"anderson-depth", OptionType::Int, "16", "8",
     "iterates --accelerate anderson mixes; it keeps 2 x depth + 2 copies of the solution"}
     .within(1, 256);
@@ -240,12 +247,12 @@ commands()
                 OptionSpec{"phase-order", OptionType::Int, "8", "6",
                     "spherical-harmonic order kept for an anisotropic phase (delta-M beyond); "
                     "(order + 1)^2 floats per voxel"}.within(0, 32),
-                OptionSpec{"voxel-source", OptionType::String, "constant", "linear",
+                OptionSpec{"voxel-source", OptionType::String, "linear", "constant",
                     "the scattered light's shape inside a voxel along each line step: linear "
                     "(its slope from the voxels before and after: right in voxels of optical "
                     "depth ~1 and more) or constant (the thesis' scheme: thin voxels only)"}
                     .oneOf({"linear", "constant"}),
-                OptionSpec{"weights", OptionType::String, "cells", "harmonic",
+                OptionSpec{"weights", OptionType::String, "harmonic", "cells",
                     "direction weights for an anisotropic phase: harmonic (refitted to integrate "
                     "spherical harmonics exactly to twice the phase order: the error then falls "
                     "with --directions and --phase-order) or cells (each direction's solid "
@@ -254,12 +261,15 @@ commands()
                     "extinction per world unit = density x this"}.above(0),
                 OptionSpec{"irradiance", OptionType::Float, "1", "3",
                     "sun irradiance F0 on a plane normal to the beam"}.atLeast(0),
-                kDirections,
+                {"directions", OptionType::String, "auto", "1000",
+                    "direction pairs swept per iteration (the nearest count a discrete sphere "
+                    "gives is used); auto: 1000 for a phase function of asymmetry |g| > 0.5 (its "
+                    "peak must be carried from voxel to voxel), else 300"},
                 OptionSpec{"iterations", OptionType::Int, "1000", "100", "source-iteration cap"}
                     .atLeast(1),
                 OptionSpec{"tolerance", OptionType::Float, "1e-6", "1e-4",
                     "stop when max|J' - J| / max|J'| falls below this"}.atLeast(0),
-                kAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
+                kCloudAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
                 kMaxMemory,
                 {"output-name", OptionType::String, "mean_intensity", "scatter",
                     "name of the output grid (e.g. `scatter` for Houdini volume shaders)"},

@@ -319,9 +319,9 @@ TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
     // is ~1 - O(1 / tau^2) there: plain sweeps need ~2,400 iterations; Anderson mixing of the
     // moments removes the few slow diffusion modes. 50 layers (voxel depth 1; at depth 2.5 the
     // converged discretisation error alone is -2.1%), 303 directions, isotropic and HG g = 0.85.
-    // Measured after 60 sweeps: isotropic -0.48%, g = 0.85 +0.22%; plain sweeps -14% (-19%
-    // before the self-scattering elimination, which at 1 per voxel removes only the local part
-    // of the slow mode).
+    // Measured after 60 sweeps (defaults: linear source, harmonic weights): isotropic -0.23 %,
+    // g = 0.85 -0.03 %; plain sweeps -13 % (-19 % before the self-scattering elimination, which
+    // at 1 per voxel removes only the local part of the slow mode).
     const Cloud cloud = slab(2, 50, 2, 50.0, 1.f);
     for (double g : {0.0, 0.85}) {
         CloudTransferOptions o;
@@ -335,7 +335,7 @@ TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
         problem.tau = 50.0;
         problem.g = g;
         const double exact = test::addingDoublingSlab(problem).reflectance;
-        double albedo[2] = {0.0, 0.0};
+        double albedo[2] = {0.0, 0.0}, balance = 0.0;
         for (Acceleration a : {Acceleration::None, Acceleration::Anderson}) {
             if (a == Acceleration::None && g != 0.0) continue;   // once is enough to show it
             o.accelerate = a;
@@ -345,13 +345,16 @@ TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
             albedo[a == Acceleration::Anderson] = transfer.budget().albedo;
             if (a == Acceleration::Anderson) {
                 // Converged, the balance closes to 1e-4 (EnergyBalancesOpenAndPeriodic); after
-                // 60 sweeps it measures what is left to converge (g = 0.85: 1.4e-4).
-                EXPECT_NEAR(transfer.budget().balance(), 0.0, 5e-4) << g;
+                // 60 sweeps it measures what is left to converge (isotropic -8.4e-4, g = 0.85
+                // 2.7e-5; with the constant source g = 0.85 was 1.4e-4: the linear source's
+                // slopes lag an iterate).
+                balance = transfer.budget().balance();
+                EXPECT_NEAR(balance, 0.0, 1e-3) << g;
                 for (float J : transfer.meanIntensity()) ASSERT_TRUE(std::isfinite(J) && J > 0.f);
             }
         }
-        std::printf("tau 50, g %.2f, 60 sweeps: albedo Anderson %.5f, exact %.5f (plain: %.5f)\n",
-            g, albedo[1], exact, albedo[0]);
+        std::printf("tau 50, g %.2f, 60 sweeps: albedo Anderson %.5f (balance %.2g), exact %.5f "
+            "(plain: %.5f)\n", g, albedo[1], balance, exact, albedo[0]);
         EXPECT_NEAR(albedo[1], exact, 0.01 * exact) << g;
         // Without acceleration the same 60 sweeps are far off (the test can fail).
         if (g == 0.0) {
@@ -398,11 +401,12 @@ TEST_F(CloudTest, ResultsDoNotDependOnThreads)
 // OverAbsorb; its horizontal light drifts out, PeriodicBoundary.h.) Opaque
 // voxels (1e4, periodic): the beam stops in the top voxel and an absorbing slab transmits
 // nothing. A conservative slab of opaque voxels converges too (the self-scattering elimination:
-// measured 64 and 50 Anderson sweeps at 100 and 1e4 per voxel; before it, neither had converged
-// after 200), and its voxels then act as N = 20 stacked diffusing plates: T = 1 / (N + 1)
-// (measured 0.047619 at both depths) against the exact slab's 8.4e-4 and 8.4e-6. That is the
-// voxel discretisation (the source is constant over a voxel), not the iteration: give thick
-// clouds more voxels. So the albedo is 20 / 21, -4.7% from the exact 0.99916 and 0.99999.
+// measured 71 and 74 Anderson sweeps at 100 and 1e4 per voxel with the linear source; before
+// it, neither had converged after 200). With a constant source over each voxel its voxels act
+// as N = 20 stacked diffusing plates: T = 1 / (N + 1) (measured 0.047619 at both depths)
+// against the exact slab's 8.4e-4 and 8.4e-6, so the albedo is 20 / 21, -4.7% from the exact
+// 0.99916 and 0.99999; the linear source (default) leaves -1.3 %. That is the voxel
+// discretisation, not the iteration: give thick clouds more voxels.
 TEST_F(CloudTest, OpticalDepthsFrom1eMinus8To1e4PerVoxel)
 {
     for (double perVoxel : {1e-8, 1e-4, 1.0, 100.0, 1e4}) {
@@ -440,8 +444,18 @@ TEST_F(CloudTest, OpticalDepthsFrom1eMinus8To1e4PerVoxel)
                     test::SlabProblem problem;
                     problem.tau = tau;
                     const double exact = test::addingDoublingSlab(problem).reflectance;
-                    EXPECT_NEAR(b.albedo, exact, 0.05 * exact) << perVoxel;
-                    EXPECT_NEAR(b.transmittance, 1.0 / 21.0, 1e-3 / 21.0) << perVoxel;
+                    // The linear source (default): measured R -1.3 %, T 0.0139 / 0.0133.
+                    EXPECT_NEAR(b.albedo, exact, 0.02 * exact) << perVoxel;
+                    EXPECT_LT(b.transmittance, 0.02) << perVoxel;
+                    // The constant source: N + 1 plates, exactly.
+                    o.source = VoxelSource::Constant;
+                    CloudTransfer plates(cloud, o);
+                    plates.solve();
+                    EXPECT_TRUE(plates.converged()) << perVoxel;
+                    EXPECT_NEAR(plates.budget().balance(), 0.0, 1e-5) << perVoxel;
+                    EXPECT_NEAR(plates.budget().albedo, exact, 0.05 * exact) << perVoxel;
+                    EXPECT_NEAR(plates.budget().transmittance, 1.0 / 21.0, 1e-3 / 21.0)
+                        << perVoxel;
                 }
             }
         }

@@ -187,6 +187,8 @@ cases()
     }});
 
     // Clouds.
+    // The variants below keep the scheme they were recorded with (constant source, cells'
+    // weights, plain sweeps unless named); "defaults" cases follow CloudTransferOptions.
     auto cbase = [] {
         CloudTransferOptions o;
         o.directions = 80;
@@ -194,6 +196,9 @@ cases()
         o.tolerance = 0.0;
         o.sunZenith = 30.0;
         o.sunAzimuth = 20.0;
+        o.source = VoxelSource::Constant;
+        o.harmonicWeights = false;
+        o.accelerate = Acceleration::None;
         return o;
     };
     all.push_back({"slab-isotropic-periodic", [=] {
@@ -232,6 +237,29 @@ cases()
         o.accelerate = Acceleration::Anderson;
         o.andersonDepth = 4;
         return cloud("cumulus", 16, o, 0.95f);
+    }});
+
+    all.push_back({"slab-hg-periodic-defaults", [=] {
+        CloudTransferOptions o;
+        o.periodic = true;
+        o.maxIterations = 6;
+        o.tolerance = 0.0;
+        o.sunZenith = 30.0;
+        o.phase = PhaseFunction::henyeyGreenstein(0.85);
+        o.phaseOrder = 4;
+        o.directions = 80;
+        return cloud("slab", 16, o);
+    }});
+    all.push_back({"step-cloud-planar-defaults", [=] {
+        CloudTransferOptions o;
+        o.periodic = true;
+        o.maxIterations = 6;
+        o.tolerance = 0.0;
+        o.sunZenith = 60.0;
+        o.phase = PhaseFunction::henyeyGreenstein(0.85);
+        o.phaseOrder = 4;
+        o.directions = 80;
+        return cloud("step-cloud", 32, o, 0.99f);
     }});
 
     // Monte Carlo: stored rays, iterations, a final gather.

@@ -284,7 +284,7 @@ TEST_F(PipelineTest, SolveCloudErrorsGiveOneLine)
         {"c.vdb out.vdb --up w", "--up must be x, y or z", 2},
         {"c.vdb out.vdb --albedo 1.5", "--albedo must be in [0, 1]", 2},
         {"c.vdb out.vdb --extinction-scale 0", "--extinction-scale must be > 0", 2},
-        {"c.vdb out.vdb --directions 0", "--directions must be in", 2},
+        {"c.vdb out.vdb --directions 0", "--directions must be auto or a count in [1, ", 2},
         {"c.vdb out.vdb --output-name ''", "--output-name must not be empty", 2},
         {"c.vdb out.vdb --g 1", "--g must be in (-1, 1)", 2},
         {"c.vdb out.vdb --legendre 0.5,0.2", "chi_0 = 1", 2},

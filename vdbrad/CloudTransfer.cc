@@ -25,6 +25,7 @@
 #include <limits>
 #include <sstream>
 #include <type_traits>
+#include <unordered_map>
 
 namespace vdbrad {
 
@@ -132,7 +133,7 @@ struct CloudTransfer::Impl
 CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt)
     : IterativeSolver(FixedPointIteration(options.maxIterations, options.tolerance,
-          options.accelerate, options.andersonDepth))
+          chooseAcceleration(given, options), options.andersonDepth))
     , mCloud(given), mOptions(options)
     , mImpl(new Impl)
 {
@@ -155,7 +156,9 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         OPENVDB_THROW(openvdb::ValueError, "RGB single-scattering albedo is not supported yet; "
             "give a float albedo grid");
     }
-    DirectionSet directions = DirectionSet::fromCount(options.directions);
+    mOptions.directions = directionCount(options);
+    mOptions.accelerate = chooseAcceleration(given, options);
+    DirectionSet directions = DirectionSet::fromCount(mOptions.directions);
     // Anisotropic scattering projects the radiance on harmonics up to order K and evaluates
     // the source from them: weights exact for products of two of them (degree 2K) keep that
     // projection from aliasing (HarmonicQuadrature.h).
@@ -271,7 +274,38 @@ Coord
 CloudTransfer::periodicCopies(const Cloud& cloud, const CloudTransferOptions& options)
 {
     if (!options.periodic || options.minPeriod == 0) return Coord(1);
-    return copiesFor(cloud, options, DirectionSet::fromCount(options.directions).size());
+    return copiesFor(cloud, options, DirectionSet::fromCount(directionCount(options)).size());
+}
+
+int
+CloudTransfer::directionCount(const CloudTransferOptions& options)
+{
+    if (options.directions != 0) return options.directions;
+    return !options.phase.isIsotropic() && std::abs(options.phase.asymmetry()) > 0.5 ? 1000 : 300;
+}
+
+Acceleration
+CloudTransfer::chooseAcceleration(const Cloud& cloud, const CloudTransferOptions& options)
+{
+    if (options.accelerate) return *options.accelerate;
+    // The thickest column's optical thickness along the vertical and the largest albedo, both
+    // delta-M scaled as the sweeps see them.
+    const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
+    const double f = options.phase.truncate(order).f, h = cloud.voxelSize();
+    std::unordered_map<Coord, double> column;
+    double omegaMax = 0.0, tauMax = 0.0;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+        Coord c = cloud.voxels().coord(i);
+        c[options.up] = 0;
+        const double w = cloud.albedo().grey(i), scaled = 1.0 - w * f;
+        double& tau = column[c];
+        tau += double(cloud.extinction(i)) * h * scaled;
+        tauMax = std::max(tauMax, tau);
+        if (scaled > 0.0) omegaMax = std::max(omegaMax, w * (1.0 - f) / scaled);
+    }
+    if (!std::isfinite(tauMax)) return Acceleration::Anderson;
+    const double slowest = omegaMax * tauMax / (tauMax + 2.0);
+    return slowest > 0.5 ? Acceleration::Anderson : Acceleration::None;
 }
 
 Coord
@@ -603,6 +637,7 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     const size_t n = cloud.size() * tiles, t = size_t(std::max(threads, 1));
     const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
     const size_t M = size_t(order + 1) * size_t(order + 1);
+    const bool anderson = chooseAcceleration(cloud, options) == Acceleration::Anderson;
     size_t perVoxel = 4 + 4 + 4 + 8 + 4;            // kappa, omega, beam J, deposit, diffuse J
     perVoxel += 8 + (M > 1 ? 8 : 0);                // escape factor, alpha's excess of I_00
     perVoxel += SweepSchedule::bytesPerVoxel(true, false, false);   // orders, layouts
@@ -612,7 +647,7 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     perVoxel += size_t(Impl::kGroups) * 4 * M;      // gathered moments per group
     perVoxel += 8 * M;                              // their double sum
     perVoxel += t * (4 + 16);                       // per thread: slots, line state
-    if (options.accelerate == Acceleration::Anderson) {
+    if (anderson) {
         perVoxel += 8 * M + AndersonMixer::bytes(M, options.andersonDepth);   // + x, G(x)
     }
     // The copies of a narrow periodic box: coordinates, extinction, the copy's source, index.
@@ -622,10 +657,10 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
         // Light carried across the side faces: per direction, sense, face and layer, twice.
         const openvdb::CoordBBox box = cloud.voxels().bbox();
         const size_t layers = size_t(box.dim()[options.up]);   // copies stack sideways only
-        const size_t dirs = DirectionSet::fromCount(options.directions).size();
+        const size_t dirs = DirectionSet::fromCount(directionCount(options)).size();
         const size_t faces = dirs * 2 * 6 * layers;
         bytes += faces * (8 + 8 + PeriodicBoundary::kBytesPerSlot);
-        if (options.accelerate == Acceleration::Anderson) {
+        if (anderson) {
             bytes += 8 * faces + AndersonMixer::bytes(faces, options.andersonDepth);
         }
     }
@@ -645,7 +680,7 @@ CloudTransfer::fingerprint() const
     h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
     h = hashBytes(impl.phase.beam.data(), impl.phase.beam.size() * sizeof(float), h);
     const int64_t options[13] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
-        mOptions.phaseOrder, int64_t(mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
+        mOptions.phaseOrder, int64_t(*mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
         impl.M, mCopies.x(), mCopies.y(), mCopies.z(), int64_t(mOptions.source),
         mQuadratureDegree, impl.flat[0] + 2 * impl.flat[1] + 4 * impl.flat[2]};
     return hashBytes(options, sizeof options, h);

@@ -15,7 +15,7 @@
 // voxel then carries the voxel's mean source instead of the source at its exit face, so each
 // layer of opaque voxels reflects like a slab of its own (20 opaque conservative layers transmit
 // 1/21 whatever their depth), and a slab of 2.5 per voxel reflects 2 % too little. With
-// VoxelSource::Linear (opt-in until its convergence is measured) the source rises linearly along
+// VoxelSource::Linear (the default) the source rises linearly along
 // each step, S + S1 (u - 1/2) for u from 0 at the entry to 1 at the exit, S1 from the sources
 // of the voxels before and after it on the line (the previous iterate's, as S itself): L_out
 // gains S1 h(tau) and the step's mean loses S1 h(tau) / tau (VoxelStep.h). The voxel's mean
@@ -82,6 +82,7 @@
 #include <openvdb/util/NullInterrupter.h>
 
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace vdbrad {
@@ -99,8 +100,10 @@ enum class VoxelSource
 
 struct CloudTransferOptions
 {
-    /// Direction pairs swept per iteration (DirectionSet::fromCount: the nearest count).
-    int directions = 300;
+    /// Direction pairs swept per iteration (DirectionSet::fromCount: the nearest count); 0
+    /// (auto): 1000 for a phase function of asymmetry |g| > 0.5, whose peak must be carried
+    /// from voxel to voxel, else 300 (CloudTransfer::directionCount()).
+    int directions = 0;
     /// Source-iteration cap, >= 1.
     int maxIterations = 1000;
     /// Stop when max |J' - J| / max J' falls below this, >= 0.
@@ -128,17 +131,17 @@ struct CloudTransferOptions
     int phaseOrder = 8;
     /// Anderson acceleration (Acceleration.h) of the source iteration, over the radiance
     /// moments (n x (K + 1)^2 numbers) and the light a periodic box carries over to the next
-    /// iteration across its side faces.
-    Acceleration accelerate = Acceleration::None;
+    /// iteration across its side faces. Unset (auto): Anderson where plain sweeps would be slow
+    /// (CloudTransfer::chooseAcceleration()).
+    std::optional<Acceleration> accelerate;
     /// Anderson history length m: 2m + 2 copies of the moments are kept.
     int andersonDepth = 16;
     /// The source's shape inside a voxel along each step.
-    VoxelSource source = VoxelSource::Constant;
+    VoxelSource source = VoxelSource::Linear;
     /// Anisotropic phase: direction weights refitted to integrate harmonics exactly up to
-    /// degree 2K (HarmonicQuadrature.h); false keeps the cells' solid angles. Opt-in until the
-    /// default direction count follows the phase: at 303 directions the cells' aliasing
-    /// offsets part of the angular error (BENCHMARKS.md, "Harmonic weights").
-    bool harmonicWeights = false;
+    /// degree 2K (HarmonicQuadrature.h), so that the error falls with the direction count;
+    /// false keeps the cells' solid angles (BENCHMARKS.md, "Harmonic weights").
+    bool harmonicWeights = true;
 };
 
 /// Where the incident sunlight went, as fractions of the incident power (after the last sweep).
@@ -177,6 +180,17 @@ public:
     const openvdb::Coord& copies() const { return mCopies; }
     /// @brief The copies a transfer of @a cloud with @a options solves (see copies()).
     static openvdb::Coord periodicCopies(const Cloud& cloud, const CloudTransferOptions& options);
+    /// @brief The direction pairs asked for: options.directions, or for 0 (auto) 1000 where the
+    /// phase function's asymmetry |g| > 0.5, else 300 (measured: BENCHMARKS.md, "Defaults").
+    static int directionCount(const CloudTransferOptions& options);
+    /// @brief options.accelerate, or where unset: Anderson where plain source iteration would
+    /// take more than ~20 sweeps to 1e-6, that is where its slowest mode, estimated as
+    /// omega0 tau / (tau + 2) (the fraction of scattered light that scatters again in a
+    /// two-stream slab of the thickest column's optical thickness tau, after delta-M scaling,
+    /// with the largest single-scattering albedo), decays slower than 1/2 per sweep; else none
+    /// (Anderson keeps 2m + 2 copies of the moments).
+    static Acceleration chooseAcceleration(const Cloud& cloud,
+        const CloudTransferOptions& options);
 
     /// @brief Peak bytes a transfer of @a cloud with @a options allocates (not counting the
     /// cloud), from the sizes of its arrays; @a threads: the worker threads that will run it.
