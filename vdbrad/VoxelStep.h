@@ -29,9 +29,9 @@ inline void
 stepFactors(float tau, float& absorb, float& mean)
 {
     if (tau > 1e-3f) {
-        const double e = std::exp(-double(tau));
-        absorb = float(1.0 - e);
-        mean = float((1.0 - e) / double(tau));
+        const double a = -std::expm1(-double(tau));
+        absorb = float(a);
+        mean = float(a / double(tau));
     } else {
         // Series to tau^3: relative error below 1e-12 here.
         absorb = tau * (1.f - 0.5f * tau * (1.f - tau / 3.f));
@@ -44,15 +44,19 @@ stepFactors(float tau, float& absorb, float& mean)
 // radiance over the step loses S1 h(tau) / tau, with
 //     h(tau) = 1 - (1 - e^-tau) / 2 - (1 - e^-tau) / tau   (tau^2 / 12 for thin steps, 1/2 opaque).
 // Returns h; @a perTau gets h / tau. Series below tau = 0.1 (the closed form cancels there).
+// With the step's factors (stepFactors(), the same numbers) from one exponential.
 inline float
-linearSourceGain(float tau, float& perTau)
+linearSourceGain(float tau, float& perTau, float& absorb, float& mean)
 {
     if (tau > 0.1f) {
         const double t = tau, a = -std::expm1(-t);
+        absorb = float(a);
+        mean = float(a / t);
         const double h = 1.0 - 0.5 * a - a / t;
         perTau = float(h / t);
         return float(h);
     }
+    stepFactors(tau, absorb, mean);
     // tau^2 / 12 - tau^3 / 24 + tau^4 / 80 - tau^5 / 360: relative error below 1e-6 here.
     perTau = tau * (1.f / 12.f - tau * (1.f / 24.f - tau * (1.f / 80.f - tau / 360.f)));
     return tau * perTau;
