@@ -10,7 +10,7 @@
 //   build/benchmarks/bench_stepcloud [res=64] (voxels along x, a multiple of 32; res / 2 layers)
 //       [directions=auto] [source=linear|constant] [weights=harmonic|cells]
 //       [accelerate=auto|none|anderson] (auto, or left out: CloudTransferOptions' defaults)
-//       [photons=2000000] (0: no Monte Carlo) [order=8]
+//       [photons=2000000] (0: no Monte Carlo) [order=auto]
 //       [experiments=0:1,0:0.99,60:1,60:0.99] (zenith:omega0, comma-separated)
 //       [minPeriod=-1] (CloudTransferOptions::minPeriod; the one-voxel depth along z is swept
 //       in the x-y plane, never copied)
@@ -45,7 +45,7 @@ main(int argc, char** argv)
     const bool harmonic = arg(4) == "auto" ? defaults.harmonicWeights : arg(4) == "harmonic";
     const std::string accelerate = arg(5);
     const long photons = argc > 6 ? std::atol(argv[6]) : 2000000;
-    const int order = argc > 7 ? std::atoi(argv[7]) : 8;
+    const int order = arg(7) == "auto" ? -1 : std::atoi(argv[7]);
     const std::string list = argc > 8 ? argv[8] : "0:1,0:0.99,60:1,60:0.99";
     const int minPeriod = argc > 9 ? std::atoi(argv[9]) : -1;
     std::vector<std::pair<double, double>> experiments;
@@ -64,7 +64,9 @@ main(int argc, char** argv)
     std::printf("%6s %6s %9s %9s %8s %9s %9s %8s %10s %6s %8s %8s %s\n", "sun", "omega0",
         "R", "R MC", "error", "T", "T MC", "error", "balance", "sweeps", "CPU s", "wall s",
         "copies");
-    for (const auto& [zenith, omega0] : experiments) {
+    std::string described;
+    for (const auto& experiment : experiments) {
+        const auto [zenith, omega0] = experiment;
         vdbrad::grids::BuildParams params;
         params.res = res;
         params.albedo = float(omega0);
@@ -88,6 +90,7 @@ main(int argc, char** argv)
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         const double cpu = vdbrad::bench::processCpuSeconds() - cpu0;
         const vdbrad::CloudBudget& b = transfer.budget();
+        if (&experiments.front() == &experiment) described = transfer.describe();
         vdbrad::test::SlabResult mc;
         if (photons > 0) {
             vdbrad::test::ColumnsProblem p;
@@ -108,5 +111,6 @@ main(int argc, char** argv)
             mc.transmittanceStderr, b.directTransmittance, mc.directTransmittance);
         std::fflush(stdout);
     }
+    std::printf("solver: %s\n", described.c_str());
     return 0;
 }

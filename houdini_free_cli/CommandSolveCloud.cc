@@ -76,7 +76,7 @@ runSolveCloud(const Arguments& a)
     } else {
         o.phase = PhaseFunction::henyeyGreenstein(a.getFloat("g"));
     }
-    o.phaseOrder = a.getInt("phase-order");
+    if (const auto v = autoOrCount(a, "phase-order", 0, 32, "an order")) o.phaseOrder = *v;
     if (a.getString("accelerate") != "auto") {
         o.accelerate = accelerationFromString(a.getString("accelerate"));
     }

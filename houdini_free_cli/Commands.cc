@@ -244,9 +244,11 @@ commands()
                 {"legendre", OptionType::String, "", "1,0.8,0.6",
                     "phase function as Legendre coefficients chi_0 = 1, chi_1, ... (e.g. Mie), "
                     "instead of --g"},
-                OptionSpec{"phase-order", OptionType::Int, "8", "6",
-                    "spherical-harmonic order kept for an anisotropic phase (delta-M beyond); "
-                    "(order + 1)^2 floats per voxel"}.within(0, 32),
+                {"phase-order", OptionType::String, "auto", "6",
+                    "spherical-harmonic order kept for an anisotropic phase (delta-M beyond), "
+                    "0 to 32; (order + 1)^2 floats per voxel; auto: the smallest order >= 8 "
+                    "that leaves at most 17 % of the phase function to delta-M (8 for g <= "
+                    "0.82, 10 for 0.85, 16 for 0.9)"},
                 OptionSpec{"voxel-source", OptionType::String, "linear", "constant",
                     "the scattered light's shape inside a voxel along each line step: linear "
                     "(its slope from the voxels before and after: right in voxels of optical "
@@ -263,8 +265,8 @@ commands()
                     "sun irradiance F0 on a plane normal to the beam"}.atLeast(0),
                 {"directions", OptionType::String, "auto", "1000",
                     "direction pairs swept per iteration (the nearest count a discrete sphere "
-                    "gives is used); auto: 1000 for a phase function of asymmetry |g| > 0.5 (its "
-                    "peak must be carried from voxel to voxel), else 300"},
+                    "gives is used); auto: for a phase function of asymmetry |g| > 0.5 (its "
+                    "peak must be carried from voxel to voxel) 2000 (order / 10)^2, else 300"},
                 OptionSpec{"iterations", OptionType::Int, "1000", "100", "source-iteration cap"}
                     .atLeast(1),
                 OptionSpec{"tolerance", OptionType::Float, "1e-6", "1e-4",

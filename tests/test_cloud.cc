@@ -19,6 +19,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <tuple>
 
 using namespace vdbrad;
 using openvdb::Coord;
@@ -49,7 +50,7 @@ slab(int nx, int ny, int nz, double tau, float albedo, double h = 0.1)
 
 // The slab tests' solver settings: periodic, 303 directions, tolerance 1e-6, Anderson, the
 // narrow box as given (no copies: 9-16x faster; the phase function and the voxel source are
-// what they test), Henyey-Greenstein g.
+// what they test), Henyey-Greenstein g at order 8.
 CloudTransferOptions
 hgSlabOptions(double g)
 {
@@ -60,6 +61,7 @@ hgSlabOptions(double g)
     o.minPeriod = 0;
     o.accelerate = Acceleration::Anderson;
     o.phase = PhaseFunction::henyeyGreenstein(g);
+    o.phaseOrder = 8;   // the order these tests' figures were measured at
     return o;
 }
 
@@ -331,6 +333,7 @@ TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
         o.maxIterations = 60;
         o.minPeriod = 0;   // the acceleration's test: the narrow box as given (16x faster)
         o.phase = PhaseFunction::henyeyGreenstein(g);
+        o.phaseOrder = 8;
         test::SlabProblem problem;
         problem.tau = 50.0;
         problem.g = g;
@@ -599,6 +602,7 @@ TEST_F(CloudTest, AsymmetryFromMinus099To099AgreesWithTheExactSlab)
         o.minPeriod = 0;   // the phase function's test: the narrow box as given (9-16x faster)
         o.accelerate = Acceleration::Anderson;
         o.phase = PhaseFunction::henyeyGreenstein(g);
+        o.phaseOrder = 8;
         CloudTransfer transfer(cloud, o);
         transfer.solve();
         test::SlabProblem problem;
@@ -792,19 +796,23 @@ TEST_F(CloudTest, StepCloudSweptInItsPlaneAgreesWithMonteCarlo)
 }
 
 // Issue 24: a periodic box one voxel deep along both horizontal axes is a plane-parallel slab,
-// swept along the vertical alone (discrete ordinates on the direction set). HG g = 0.848 on 80
-// layers, 1000 directions, harmonic weights, linear source, against adding-doubling: measured
-// tau 2 -0.09 %, 10 -0.08 %, 50 -0.01 %; within 0.15 %.
+// swept along the vertical alone (discrete ordinates on the direction set). The issue's slab
+// criterion: HG g = 0.848, conservative, tau 0.5 to 100, at default settings (phase order 10
+// and 2000 directions chosen from g, harmonic weights, linear source, Anderson chosen from the
+// medium) on 80 layers, against adding-doubling: within 0.1 %. Measured -0.008 / -0.042 /
+// -0.053 / -0.037 / -0.000 / +0.023 % at tau 0.5 / 2 / 5 / 10 / 50 / 100 (at order 8, -0.11 %
+// at tau 5); the test runs the thinnest, the worst and the thickest.
 TEST_F(CloudTest, OneVoxelWideBoxIsThePlaneParallelSlab)
 {
-    for (double tau : {2.0, 10.0, 50.0}) {
-        CloudTransferOptions o = hgSlabOptions(0.848);
-        o.directions = 1000;
-        o.harmonicWeights = true;
-        o.source = VoxelSource::Linear;
+    for (double tau : {0.5, 5.0, 100.0}) {
+        CloudTransferOptions o;
+        o.periodic = true;
+        o.phase = PhaseFunction::henyeyGreenstein(0.848);
         CloudTransfer transfer(slab(1, 80, 1, tau, 1.f), o);
-        EXPECT_NE(transfer.describe().find("deep along x z"), std::string::npos)
-            << transfer.describe();
+        const std::string said = transfer.describe();
+        EXPECT_NE(said.find("deep along x z"), std::string::npos) << said;
+        EXPECT_NE(said.find("phase order 10"), std::string::npos) << said;
+        EXPECT_EQ(transfer.directions().size(), DirectionSet::fromCount(2000).size());
         transfer.solve();
         ASSERT_TRUE(transfer.converged()) << tau;
         test::SlabProblem problem;
@@ -814,9 +822,50 @@ TEST_F(CloudTest, OneVoxelWideBoxIsThePlaneParallelSlab)
         std::printf("plane-parallel tau %g: albedo %.5f, exact %.5f (%+.3f %%), %d sweeps\n", tau,
             transfer.budget().albedo, exact, 100.0 * (transfer.budget().albedo / exact - 1.0),
             transfer.iterationCount());
-        EXPECT_NEAR(transfer.budget().albedo, exact, 0.0015 * exact) << tau;
+        EXPECT_NEAR(transfer.budget().albedo, exact, 0.001 * exact) << tau;
         EXPECT_NEAR(transfer.budget().balance(), 0.0, 1e-4) << tau;
     }
+}
+
+// Issue 24, defaults chosen from the phase function and the medium: the phase order leaves at
+// most 17 % to delta-M, the directions grow with its square, acceleration where plain sweeps
+// would be slow.
+TEST_F(CloudTest, DefaultsFollowThePhaseFunctionAndTheMedium)
+{
+    CloudTransferOptions o;
+    EXPECT_EQ(CloudTransfer::phaseOrderFor(o), 0);
+    EXPECT_EQ(CloudTransfer::directionCount(o), 300);
+    for (auto [g, order, directions] : {std::tuple<double, int, int>{0.3, 8, 300},
+             {0.6, 8, 1280}, {0.8, 8, 1280}, {0.85, 10, 2000}, {0.9, 16, 5120},
+             {-0.95, 16, 5120}}) {
+        o.phase = PhaseFunction::henyeyGreenstein(g);
+        EXPECT_EQ(CloudTransfer::phaseOrderFor(o), order) << g;
+        EXPECT_EQ(CloudTransfer::directionCount(o), directions) << g;
+        // The order is the smallest >= 8 leaving at most 0.17 (or 16).
+        if (order > 8 && order < 16) {
+            EXPECT_LE(std::pow(std::abs(g), order + 1), 0.17) << g;
+            EXPECT_GT(std::pow(std::abs(g), order), 0.17) << g;
+        }
+    }
+    o.phaseOrder = 4;
+    o.directions = 50;
+    EXPECT_EQ(CloudTransfer::phaseOrderFor(o), 4);
+    EXPECT_EQ(CloudTransfer::directionCount(o), 50);
+    // Acceleration: omega0 tau / (tau + 2) against 1/2 for the thickest column.
+    CloudTransferOptions iso;
+    iso.periodic = true;
+    EXPECT_EQ(CloudTransfer::chooseAcceleration(slab(2, 10, 2, 1.0, 1.f), iso),
+        Acceleration::None);                                           // 1/3
+    EXPECT_EQ(CloudTransfer::chooseAcceleration(slab(2, 10, 2, 3.0, 1.f), iso),
+        Acceleration::Anderson);                                       // 3/5
+    EXPECT_EQ(CloudTransfer::chooseAcceleration(slab(2, 10, 2, 10.0, 0.5f), iso),
+        Acceleration::None);                                           // 5/12
+    iso.accelerate = Acceleration::None;
+    EXPECT_EQ(CloudTransfer::chooseAcceleration(slab(2, 10, 2, 10.0, 1.f), iso),
+        Acceleration::None);
+    CloudTransferOptions bad;
+    bad.phaseOrder = -2;
+    EXPECT_THROW(CloudTransfer(slab(1, 4, 1, 1.0, 1.f), bad), openvdb::ValueError);
 }
 
 } // namespace

@@ -207,13 +207,18 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         OPENVDB_THROW(openvdb::ValueError, "RGB single-scattering albedo is not supported yet; "
             "give a float albedo grid");
     }
+    if (options.phaseOrder < -1) {
+        OPENVDB_THROW(openvdb::ValueError, "phase order must be >= 0 (or -1: auto), got "
+            << options.phaseOrder);
+    }
+    mOptions.phaseOrder = phaseOrderFor(options);
     mOptions.directions = directionCount(options);
     mOptions.accelerate = chooseAcceleration(given, options);
     DirectionSet directions = DirectionSet::fromCount(mOptions.directions);
     // Anisotropic scattering projects the radiance on harmonics up to order K and evaluates
     // the source from them: weights exact for products of two of them (degree 2K) keep that
     // projection from aliasing (HarmonicQuadrature.h).
-    const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
+    const int order = phaseOrderFor(options);
     if (order > 0 && options.harmonicWeights) {
         HarmonicQuadrature fit = fitHarmonicQuadrature(directions,
             std::min(2 * order, kMaxQuadratureDegree));
@@ -329,10 +334,22 @@ CloudTransfer::periodicCopies(const Cloud& cloud, const CloudTransferOptions& op
 }
 
 int
+CloudTransfer::phaseOrderFor(const CloudTransferOptions& options)
+{
+    if (options.phase.isIsotropic()) return 0;
+    if (options.phaseOrder >= 0) return options.phaseOrder;
+    int order = 8;
+    while (order < 16 && std::abs(options.phase.chi(order + 1)) > 0.17) ++order;
+    return order;
+}
+
+int
 CloudTransfer::directionCount(const CloudTransferOptions& options)
 {
     if (options.directions != 0) return options.directions;
-    return !options.phase.isIsotropic() && std::abs(options.phase.asymmetry()) > 0.5 ? 1000 : 300;
+    if (options.phase.isIsotropic() || std::abs(options.phase.asymmetry()) <= 0.5) return 300;
+    const double k = phaseOrderFor(options) / 10.0;
+    return int(std::lround(2000.0 * k * k));
 }
 
 Acceleration
@@ -341,7 +358,7 @@ CloudTransfer::chooseAcceleration(const Cloud& cloud, const CloudTransferOptions
     if (options.accelerate) return *options.accelerate;
     // The thickest column's optical thickness along the vertical and the largest albedo, both
     // delta-M scaled as the sweeps see them.
-    const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
+    const int order = phaseOrderFor(options);
     const double f = options.phase.truncate(order).f, h = cloud.voxelSize();
     std::unordered_map<Coord, double> column;
     double omegaMax = 0.0, tauMax = 0.0;
@@ -724,7 +741,7 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     const Coord copies = periodicCopies(cloud, options);
     const size_t tiles = size_t(copies.x()) * size_t(copies.y()) * size_t(copies.z());
     const size_t n = cloud.size() * tiles, t = size_t(std::max(threads, 1));
-    const int order = options.phase.isIsotropic() ? 0 : options.phaseOrder;
+    const int order = phaseOrderFor(options);
     const size_t M = size_t(order + 1) * size_t(order + 1);
     const bool anderson = chooseAcceleration(cloud, options) == Acceleration::Anderson;
     size_t perVoxel = 4 + 4 + 4 + 8 + 4;            // kappa, omega, beam J, deposit, diffuse J
@@ -770,7 +787,7 @@ CloudTransfer::fingerprint() const
     h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
     h = hashBytes(impl.phase.beam.data(), impl.phase.beam.size() * sizeof(float), h);
     const int64_t options[13] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
-        mOptions.phaseOrder, int64_t(*mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
+        phaseOrderFor(mOptions), int64_t(*mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
         impl.M, mCopies.x(), mCopies.y(), mCopies.z(), int64_t(mOptions.source),
         mQuadratureDegree, impl.flat[0] + 2 * impl.flat[1] + 4 * impl.flat[2]};
     return hashBytes(options, sizeof options, h);
@@ -863,6 +880,7 @@ CloudTransfer::describe() const
         for (int k = 0; k < 3; ++k) if (flat[size_t(k)]) os << ' ' << axis[k];
         os << ": swept across it)";
     }
+    if (mOptions.phaseOrder > 0) os << ", phase order " << mOptions.phaseOrder;
     if (mQuadratureDegree > 0) {
         os << ", weights exact for harmonics to degree " << mQuadratureDegree;
     }

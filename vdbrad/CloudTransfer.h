@@ -101,8 +101,9 @@ enum class VoxelSource
 struct CloudTransferOptions
 {
     /// Direction pairs swept per iteration (DirectionSet::fromCount: the nearest count); 0
-    /// (auto): 1000 for a phase function of asymmetry |g| > 0.5, whose peak must be carried
-    /// from voxel to voxel, else 300 (CloudTransfer::directionCount()).
+    /// (auto): for a phase function of asymmetry |g| > 0.5, whose peak must be carried from
+    /// voxel to voxel, 2000 (K / 10)^2 at phase order K, else 300
+    /// (CloudTransfer::directionCount()).
     int directions = 0;
     /// Source-iteration cap, >= 1.
     int maxIterations = 1000;
@@ -127,8 +128,11 @@ struct CloudTransferOptions
     /// Scattering phase function (PhaseFunction.h); isotropic by default.
     PhaseFunction phase;
     /// Spherical-harmonic order K of the radiance moments kept for an anisotropic phase, with
-    /// delta-M scaling beyond it: (K + 1)^2 numbers per voxel and per accumulator group.
-    int phaseOrder = 8;
+    /// delta-M scaling beyond it: (K + 1)^2 numbers per voxel and per accumulator group. -1
+    /// (auto): the smallest K >= 8 whose truncated fraction |chi_{K+1}| is at most 0.17, at
+    /// most 16 (CloudTransfer::phaseOrderFor(): 8 for HG g <= 0.82, 10 for g = 0.85, 16 for
+    /// 0.9).
+    int phaseOrder = -1;
     /// Anderson acceleration (Acceleration.h) of the source iteration, over the radiance
     /// moments (n x (K + 1)^2 numbers) and the light a periodic box carries over to the next
     /// iteration across its side faces. Unset (auto): Anderson where plain sweeps would be slow
@@ -180,9 +184,14 @@ public:
     const openvdb::Coord& copies() const { return mCopies; }
     /// @brief The copies a transfer of @a cloud with @a options solves (see copies()).
     static openvdb::Coord periodicCopies(const Cloud& cloud, const CloudTransferOptions& options);
-    /// @brief The direction pairs asked for: options.directions, or for 0 (auto) 1000 where the
-    /// phase function's asymmetry |g| > 0.5, else 300 (measured: BENCHMARKS.md, "Defaults").
+    /// @brief The direction pairs asked for: options.directions, or for 0 (auto) 2000 (K / 10)^2
+    /// at phase order K where the phase function's asymmetry |g| > 0.5, else 300 (measured:
+    /// BENCHMARKS.md, "Step cloud: swept in its plane, defaults").
     static int directionCount(const CloudTransferOptions& options);
+    /// @brief The phase order solved: 0 for an isotropic phase, else options.phaseOrder, or
+    /// for -1 (auto) the smallest K >= 8 with |chi_{K+1}| <= 0.17, at most 16 (delta-M then
+    /// moves at most 17 % of the phase function into the forward peak: BENCHMARKS.md).
+    static int phaseOrderFor(const CloudTransferOptions& options);
     /// @brief options.accelerate, or where unset: Anderson where plain source iteration would
     /// take more than ~20 sweeps to 1e-6, that is where its slowest mode, estimated as
     /// omega0 tau / (tau + 2) (the fraction of scattered light that scatters again in a
