@@ -13,7 +13,8 @@
 //       [photons=2000000] (0: no Monte Carlo) [order=auto]
 //       [experiments=0:1,0:0.99,60:1,60:0.99] (zenith:omega0, comma-separated)
 //       [minPeriod=-1] (CloudTransferOptions::minPeriod; the one-voxel depth along z is swept
-//       in the x-y plane, never copied)
+//       in the x-y plane, never copied) [csv=-] (appends one row per experiment, for
+//       scripts/plot-stepcloud.py; - for none)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -48,6 +49,11 @@ main(int argc, char** argv)
     const int order = arg(7) == "auto" ? -1 : std::atoi(argv[7]);
     const std::string list = argc > 8 ? argv[8] : "0:1,0:0.99,60:1,60:0.99";
     const int minPeriod = argc > 9 ? std::atoi(argv[9]) : -1;
+    std::FILE* csv = argc > 10 && std::string(argv[10]) != "-" ? std::fopen(argv[10], "a") : nullptr;
+    if (csv && std::ftell(csv) == 0) {
+        std::fprintf(csv, "res,directions,order,source,weights,zenith,omega0,R,R_mc,R_stderr,T,"
+            "T_mc,T_stderr,sweeps,cpu_s\n");
+    }
     std::vector<std::pair<double, double>> experiments;
     for (size_t at = 0; at < list.size();) {
         const size_t comma = std::min(list.find(',', at), list.size());
@@ -110,7 +116,16 @@ main(int argc, char** argv)
             transfer.iterationCount(), cpu, wall, k.x(), k.y(), k.z(), mc.reflectanceStderr,
             mc.transmittanceStderr, b.directTransmittance, mc.directTransmittance);
         std::fflush(stdout);
+        if (csv) {
+            std::fprintf(csv, "%d,%zu,%d,%s,%s,%g,%g,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%d,%.2f\n", res,
+                transfer.directions().size(), vdbrad::CloudTransfer::phaseOrderFor(o),
+                linear ? "linear" : "constant", harmonic ? "harmonic" : "cells", zenith, omega0,
+                b.albedo, mc.reflectance, mc.reflectanceStderr, b.transmittance,
+                mc.transmittance, mc.transmittanceStderr, transfer.iterationCount(), cpu);
+            std::fflush(csv);
+        }
     }
+    if (csv) std::fclose(csv);
     std::printf("solver: %s\n", described.c_str());
     return 0;
 }
