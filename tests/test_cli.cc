@@ -527,6 +527,39 @@ TEST_F(CliTest, MemoryEstimateIsPrintedMatchesThePeakAndRefusesOverTheLimit)
     EXPECT_NE(bad.err.find("--max-memory"), std::string::npos) << bad.err;
 }
 
+TEST_F(CliTest, SolveCloudChoosesItsSettingsFromThePhaseAndTheMedium)
+{
+    // Issue 24: by default solve-cloud takes the phase order, the direction count and the
+    // acceleration from the phase function and the medium (CloudTransfer::phaseOrderFor,
+    // directionCount, chooseAcceleration) and says what it chose; a one-voxel-deep periodic
+    // box is swept in its plane. Given values win.
+    ASSERT_EQ(sh("vdbrad make step-cloud s.vdb --res 32 --quiet").status, 0);
+    const Result chosen = sh("vdbrad solve-cloud s.vdb a.vdb --periodic --g 0.85 --iterations 1");
+    ASSERT_EQ(chosen.status, 0) << chosen.err;
+    for (const char* said : {"2013 directions (nearest to 2000)", "one voxel deep along z",
+             "phase order 10", "weights exact for harmonics to degree 20",
+             "Anderson acceleration"}) {
+        EXPECT_NE(chosen.err.find(said), std::string::npos) << said << "\n" << chosen.err;
+    }
+    EXPECT_EQ(chosen.err.find("constant source"), std::string::npos) << chosen.err;
+    const Result given = sh("vdbrad solve-cloud s.vdb b.vdb --periodic --g 0.85 --iterations 1 "
+                            "--phase-order 6 --directions 300 --accelerate none "
+                            "--voxel-source constant --weights cells");
+    ASSERT_EQ(given.status, 0) << given.err;
+    for (const char* said : {"303 directions (nearest to 300)", "phase order 6",
+             "constant source"}) {
+        EXPECT_NE(given.err.find(said), std::string::npos) << said << "\n" << given.err;
+    }
+    for (const char* unsaid : {"Anderson", "weights exact"}) {
+        EXPECT_EQ(given.err.find(unsaid), std::string::npos) << unsaid << "\n" << given.err;
+    }
+    // Isotropic: 300 directions, no phase order to say.
+    const Result iso = sh("vdbrad solve-cloud s.vdb c.vdb --periodic --iterations 1");
+    ASSERT_EQ(iso.status, 0) << iso.err;
+    EXPECT_NE(iso.err.find("303 directions (nearest to 300)"), std::string::npos) << iso.err;
+    EXPECT_EQ(iso.err.find("phase order"), std::string::npos) << iso.err;
+}
+
 TEST_F(CliTest, NarrowPeriodicCloudIsSolvedAsCopiesUnlessToldNot)
 {
     // An 8-wide periodic slab with 303 directions (auto: 9 voxels at least) is solved as 2 x 2
