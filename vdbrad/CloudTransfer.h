@@ -67,8 +67,10 @@
 // the direction set's quadrature of it is exactly the scattered power, so the energy balance
 // above still closes. The moments are quadratures too: with the cells' solid angles products of
 // order-K harmonics integrate roughly and higher orders alias; harmonicWeights refits the
-// weights to integrate them exactly (HarmonicQuadrature.h). Cost: (K + 1)^2 multiply-adds per voxel and direction, twice (source and
-// moments); memory (K + 1)^2 floats per voxel per accumulator group.
+// weights to integrate them exactly (HarmonicQuadrature.h). Cost: (K + 1)^2 multiply-adds per
+// voxel and direction, twice (source and moments), done for a batch of directions at a time as
+// two small matrix products outside the sequential line steps; memory (K + 1)^2 floats per voxel
+// per accumulator group, and per thread two matrices of voxels x the batch's columns.
 #pragma once
 
 #include "vdbrad/Acceleration.h"
