@@ -51,11 +51,9 @@ runSolveCloud(const Arguments& a)
     }
     o.up = choice<int>(a, "up", {{"x", 0}, {"y", 1}, {"z", 2}});
     o.periodic = a.flag("periodic");
-    {
-        if (const auto v = autoOrCount(a, "min-period", 0, 4096, "a voxel count")) o.minPeriod = *v;
-        if (a.has("min-period") && !o.periodic) {
-            throw UsageError("--min-period applies to --periodic boxes only");
-        }
+    if (const auto v = autoOrCount(a, "min-period", 0, 4096, "a voxel count")) o.minPeriod = *v;
+    if (a.has("min-period") && !o.periodic) {
+        throw UsageError("--min-period applies to --periodic boxes only");
     }
     if (const auto v = autoOrCount(a, "directions", 1, long(DirectionSet::maxCount()), "a count")) {
         o.directions = *v;

@@ -213,7 +213,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     }
     mOptions.phaseOrder = phaseOrderFor(options);
     mOptions.directions = directionCount(options);
-    mOptions.accelerate = chooseAcceleration(given, options);
+    mOptions.accelerate = mIteration.acceleration();   // chosen once, for the base class
     DirectionSet directions = DirectionSet::fromCount(mOptions.directions);
     // Anisotropic scattering projects the radiance on harmonics up to order K and evaluates
     // the source from them: weights exact for products of two of them (degree 2K) keep that

@@ -61,6 +61,8 @@ public:
     double seconds() const { return mSeconds; }
     void addSeconds(double s) { mSeconds += s; }
 
+    /// How the iteration is accelerated.
+    Acceleration acceleration() const { return mAccelerate; }
     /// @brief A mixer for a state of @a size unknowns of type T (Acceleration.h), or null
     /// when the iteration is not accelerated.
     template<typename T> std::unique_ptr<AndersonMixerT<T>> makeMixer(size_t size) const
