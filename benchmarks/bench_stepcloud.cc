@@ -14,7 +14,8 @@
 //       [experiments=0:1,0:0.99,60:1,60:0.99] (zenith:omega0, comma-separated)
 //       [minPeriod=-1] (CloudTransferOptions::minPeriod; the one-voxel depth along z is swept
 //       in the x-y plane, never copied) [csv=-] (appends one row per experiment, for
-//       scripts/plot-stepcloud.py; - for none)
+//       scripts/plot-stepcloud.py; - for none) [ground=none] (a Lambertian ground's albedo
+//       under the cloud, in the solve and the Monte Carlo; T is then the ground's irradiance)
 #include "vdbrad/Cloud.h"
 #include "vdbrad/CloudTransfer.h"
 
@@ -49,6 +50,8 @@ main(int argc, char** argv)
     const int order = arg(7) == "auto" ? -1 : std::atoi(argv[7]);
     const std::string list = argc > 8 ? argv[8] : "0:1,0:0.99,60:1,60:0.99";
     const int minPeriod = argc > 9 ? std::atoi(argv[9]) : -1;
+    const bool grounded = argc > 11 && std::string(argv[11]) != "none";
+    const double groundAlbedo = grounded ? std::atof(argv[11]) : 0.0;
     std::FILE* csv = argc > 10 && std::string(argv[10]) != "-" ? std::fopen(argv[10], "a") : nullptr;
     if (csv && std::ftell(csv) == 0) {
         std::fprintf(csv, "res,directions,order,source,weights,zenith,omega0,R,R_mc,R_stderr,T,"
@@ -64,9 +67,10 @@ main(int argc, char** argv)
         at = comma + 1;
     }
     std::printf("step cloud res %d (%d x %d x 1 voxels), %s directions asked, order %d, %s "
-        "source, %s weights, acceleration %s, Monte Carlo %ld photons\n", res, res, res / 2,
-        arg(2).c_str(), order, linear ? "linear" : "constant", harmonic ? "harmonic" : "cell",
-        accelerate.c_str(), photons);
+        "source, %s weights, acceleration %s, Monte Carlo %ld photons, ground %s\n", res, res,
+        res / 2, arg(2).c_str(), order, linear ? "linear" : "constant",
+        harmonic ? "harmonic" : "cell", accelerate.c_str(), photons,
+        grounded ? argv[11] : "none (black)");
     std::printf("%6s %6s %9s %9s %8s %9s %9s %8s %10s %6s %8s %8s %s\n", "sun", "omega0",
         "R", "R MC", "error", "T", "T MC", "error", "balance", "sweeps", "CPU s", "wall s",
         "copies");
@@ -88,6 +92,7 @@ main(int argc, char** argv)
         o.harmonicWeights = harmonic;
         if (accelerate != "auto") o.accelerate = vdbrad::accelerationFromString(accelerate);
         o.minPeriod = minPeriod;
+        if (grounded) o.groundAlbedo = groundAlbedo;
         const double cpu0 = vdbrad::bench::processCpuSeconds();
         const auto t0 = std::chrono::steady_clock::now();
         vdbrad::CloudTransfer transfer(cloud, o);
@@ -102,6 +107,7 @@ main(int argc, char** argv)
             vdbrad::test::ColumnsProblem p;
             for (int c = 0; c < 32; ++c) p.columnTau.push_back(c < 16 ? 2.0 : 18.0);
             p.omega0 = omega0, p.g = 0.85, p.theta0 = zenith, p.phi0 = 0.0;
+            p.groundAlbedo = groundAlbedo;
             vdbrad::test::MonteCarloRun run;
             run.photons = uint64_t(photons);
             run.seed = 7;

@@ -82,6 +82,7 @@ runSolveCloud(const Arguments& a)
         {{"constant", VoxelSource::Constant}, {"linear", VoxelSource::Linear}});
     o.harmonicWeights = a.getString("weights") == "harmonic";
     o.andersonDepth = a.getInt("anderson-depth");
+    if (a.has("ground-albedo")) o.groundAlbedo = a.getFloat("ground-albedo");
     SolveSession session(a, in, out);
     const VdbFile& file = session.file();
     const std::string& label = session.label();
@@ -92,11 +93,14 @@ runSolveCloud(const Arguments& a)
     const std::string memory = checkMemory(a, label,
         residentBytes(double(fileBytes(file) + cloud.memUsage())),
         double(CloudTransfer::memoryEstimate(cloud, o, workerThreads())));
+    openvdb::FloatGrid::Ptr ground;
     const openvdb::GridBase::Ptr intensity = forFile(label, [&] {
-        return solveCloud(cloud, o, &progress, session.control(memory));
+        return solveCloud(cloud, o, &progress, session.control(memory), &ground);
     });
     intensity->setName(name);
-    session.finish({intensity}, out, o.maxIterations);
+    openvdb::GridPtrVec outputs{intensity};
+    if (ground) outputs.push_back(ground);
+    session.finish(outputs, out, o.maxIterations);
     return 0;
 }
 

@@ -263,6 +263,11 @@ commands()
                     "extinction per world unit = density x this"}.above(0),
                 OptionSpec{"irradiance", OptionType::Float, "1", "3",
                     "sun irradiance F0 on a plane normal to the beam"}.atLeast(0),
+                OptionSpec{"ground-albedo", OptionType::Float, "", "0.4",
+                    "a Lambertian ground of this albedo under the box (its footprint; with "
+                    "--periodic the whole plane) reflecting light back into the cloud; writes "
+                    "its irradiance as `ground_irradiance`, one layer of voxels below the box. "
+                    "Default: none (light leaving downwards is gone)"}.within(0, 1),
                 {"directions", OptionType::String, "auto", "1000",
                     "direction pairs swept per iteration (the nearest count a discrete sphere "
                     "gives is used); auto: for a phase function of asymmetry |g| > 0.5 (its "

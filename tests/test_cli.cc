@@ -389,6 +389,8 @@ TEST_F(CliTest, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits)
             "radiosity"},
         {"solve-cloud k.vdb", "--directions 300 --tolerance 0 --periodic --accelerate anderson",
             "mean_intensity"},
+        {"solve-cloud k.vdb", "--directions 300 --tolerance 0 --periodic --accelerate anderson "
+            "--ground-albedo 0.4", "ground_irradiance"},
     };
     for (const auto& c : cases) {
         // The binary itself (not the fixture's shell function) runs in the background, so that
@@ -532,7 +534,7 @@ TEST_F(CliTest, SolveCloudChoosesItsSettingsFromThePhaseAndTheMedium)
     // Issue 24: by default solve-cloud takes the phase order, the direction count and the
     // acceleration from the phase function and the medium (CloudTransfer::phaseOrderFor,
     // directionCount, chooseAcceleration) and says what it chose; a one-voxel-deep periodic
-    // box is swept in its plane. Given values win.
+    // box is swept in its plane. Given values win. A ground comes out as its own grid.
     ASSERT_EQ(sh("vdbrad make step-cloud s.vdb --res 32 --quiet").status, 0);
     const Result chosen = sh("vdbrad solve-cloud s.vdb a.vdb --periodic --g 0.85 --iterations 1");
     ASSERT_EQ(chosen.status, 0) << chosen.err;
@@ -582,6 +584,32 @@ TEST_F(CliTest, NarrowPeriodicCloudIsSolvedAsCopiesUnlessToldNot)
     }
     EXPECT_FALSE(valueBits(path("t.vdb"), "mean_intensity")
         == valueBits(path("p.vdb"), "mean_intensity"));
+    // A ground: its irradiance comes out as a grid one layer below the box; a ground albedo
+    // outside [0, 1] is refused in one line.
+    const Result grounded = sh("vdbrad solve-cloud s.vdb g.vdb --periodic --directions 300 "
+        "--ground-albedo 0.4");
+    ASSERT_EQ(grounded.status, 0) << grounded.err;
+    EXPECT_NE(grounded.err.find("over a Lambertian ground of albedo 0.4"), std::string::npos)
+        << grounded.err;
+    EXPECT_NE(grounded.err.find("reflected by the ground"), std::string::npos) << grounded.err;
+    {
+        const VdbFile f = readVdbFile(path("g.vdb"));
+        const openvdb::GridBase::ConstPtr ground = findGrid(f.grids, "ground_irradiance");
+        ASSERT_TRUE(ground);
+        const openvdb::CoordBBox box = findGrid(f.grids, "density")->evalActiveVoxelBoundingBox();
+        const openvdb::CoordBBox layer = ground->evalActiveVoxelBoundingBox();
+        EXPECT_EQ(layer.min().y(), box.min().y() - 1);
+        EXPECT_EQ(layer.max().y(), box.min().y() - 1);
+        EXPECT_EQ(ground->activeVoxelCount(),
+            openvdb::Index64(box.dim().x()) * openvdb::Index64(box.dim().z()));
+    }
+    for (const char* bad : {"--ground-albedo 1.5", "--ground-albedo -0.1", "--ground-albedo x"}) {
+        const Result r = sh(std::string("vdbrad solve-cloud s.vdb x.vdb ") + bad);
+        EXPECT_EQ(r.status, 2) << bad;
+        EXPECT_EQ(r.errLines().size(), 1u) << bad << ": " << r.err;
+        EXPECT_NE(r.err.find("--ground-albedo"), std::string::npos) << r.err;
+        EXPECT_FALSE(exists(path("x.vdb"))) << bad;
+    }
     for (const char* bad : {"--periodic --min-period -1", "--periodic --min-period wide",
              "--periodic --min-period 1e9", "--min-period 4"}) {
         const Result r = sh(std::string("vdbrad solve-cloud s.vdb x.vdb ") + bad);

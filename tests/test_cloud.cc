@@ -320,18 +320,17 @@ TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
     // exact one (adding-doubling, 0.967354) in <= 60 sweeps. Source iteration's spectral radius
     // is ~1 - O(1 / tau^2) there: plain sweeps need ~2,400 iterations; Anderson mixing of the
     // moments removes the few slow diffusion modes. 50 layers (voxel depth 1; at depth 2.5 the
-    // converged discretisation error alone is -2.1%), 303 directions, isotropic and HG g = 0.85.
-    // Measured after 60 sweeps (defaults: linear source, harmonic weights): isotropic -0.23 %,
-    // g = 0.85 -0.03 %; plain sweeps -13 % (-19 % before the self-scattering elimination, which
-    // at 1 per voxel removes only the local part of the slow mode).
-    const Cloud cloud = slab(2, 50, 2, 50.0, 1.f);
+    // converged discretisation error alone is -2.1%), 303 directions, isotropic and HG g = 0.85,
+    // plane-parallel (one voxel wide: swept along the vertical alone).
+    // Measured after 60 sweeps (defaults: linear source, harmonic weights): isotropic +0.10 %,
+    // g = 0.85 +0.03 %; plain sweeps -9.8 %.
+    const Cloud cloud = slab(1, 50, 1, 50.0, 1.f);   // plane-parallel: swept along y alone
     for (double g : {0.0, 0.85}) {
         CloudTransferOptions o;
         o.periodic = true;
         o.directions = 300;
         o.tolerance = 0.0;
         o.maxIterations = 60;
-        o.minPeriod = 0;   // the acceleration's test: the narrow box as given (16x faster)
         o.phase = PhaseFunction::henyeyGreenstein(g);
         o.phaseOrder = 8;
         test::SlabProblem problem;
@@ -348,9 +347,8 @@ TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
             albedo[a == Acceleration::Anderson] = transfer.budget().albedo;
             if (a == Acceleration::Anderson) {
                 // Converged, the balance closes to 1e-4 (EnergyBalancesOpenAndPeriodic); after
-                // 60 sweeps it measures what is left to converge (isotropic -8.4e-4, g = 0.85
-                // 2.7e-5; with the constant source g = 0.85 was 1.4e-4: the linear source's
-                // slopes lag an iterate).
+                // 60 sweeps it measures what is left to converge (isotropic 2.4e-4, g = 0.85
+                // 5.4e-4).
                 balance = transfer.budget().balance();
                 EXPECT_NEAR(balance, 0.0, 1e-3) << g;
                 for (float J : transfer.meanIntensity()) ASSERT_TRUE(std::isfinite(J) && J > 0.f);
@@ -361,7 +359,7 @@ TEST_F(CloudTest, AndersonReachesAThickConservativeSlabInSixtySweeps)
         EXPECT_NEAR(albedo[1], exact, 0.01 * exact) << g;
         // Without acceleration the same 60 sweeps are far off (the test can fail).
         if (g == 0.0) {
-            EXPECT_LT(albedo[0], 0.9 * exact);
+            EXPECT_LT(albedo[0], 0.95 * exact);
         }
     }
 }
@@ -374,21 +372,25 @@ TEST_F(CloudTest, ResultsDoNotDependOnThreads)
     o.sunZenith = 50.0;
     o.directions = 111;
     o.maxIterations = 5;
-    for (Acceleration a : {Acceleration::None, Acceleration::Anderson}) {
-        o.accelerate = a;
+    for (int run = 0; run < 3; ++run) {
+        // Without a ground, then over one (Ground.h), plain and accelerated.
+        o.accelerate = run == 1 ? Acceleration::None : Acceleration::Anderson;
+        if (run == 2) o.groundAlbedo = 0.4;
         std::vector<float> reference;
         for (int threads : {1, 2, 8}) {
             tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                 size_t(threads));
             CloudTransfer transfer(cloud, o);
             transfer.solve();
-            const std::vector<float> J = transfer.meanIntensity();
+            std::vector<float> J = transfer.meanIntensity();
+            const std::vector<float> E = transfer.groundIrradiance();
+            J.insert(J.end(), E.begin(), E.end());
             if (reference.empty()) {
                 reference = J;
             } else {
                 ASSERT_EQ(J.size(), reference.size());
                 for (size_t i = 0; i < J.size(); ++i) {
-                    ASSERT_EQ(J[i], reference[i]) << threads << " anderson " << int(a);
+                    ASSERT_EQ(J[i], reference[i]) << threads << " run " << run;
                 }
             }
         }
@@ -869,3 +871,164 @@ TEST_F(CloudTest, DefaultsFollowThePhaseFunctionAndTheMedium)
 }
 
 } // namespace
+
+// Issue 24, a Lambertian ground: a plane-parallel slab (40 layers, default settings) over a
+// ground of albedo 0.4 against the adding method (the ground added to adding-doubling's slab,
+// tests/CloudReference.h), sun at 0 and 60 degrees: the domain albedo within 0.3 % and the
+// ground's irradiance within 0.6 % (measured: worst +0.27 % and -0.48 %, where the irradiance is
+// 0.062 under tau 10 at 60 degrees), and the energy balance to 1e-4.
+TEST_F(CloudTest, PlaneParallelSlabOverAGroundIsTheAddingMethod)
+{
+    for (double g : {0.0, 0.85}) {
+        for (double zenith : {0.0, 60.0}) {
+            for (auto [tau, omega0] : {std::pair<double, float>{2.0, 1.f}, {10.0, 0.9f}}) {
+                CloudTransferOptions o;
+                o.periodic = true;
+                o.groundAlbedo = 0.4;
+                o.sunZenith = zenith;
+                if (g != 0.0) o.phase = PhaseFunction::henyeyGreenstein(g);
+                CloudTransfer transfer(slab(1, 40, 1, tau, omega0), o);
+                transfer.solve();
+                ASSERT_TRUE(transfer.converged()) << g << ' ' << zenith << ' ' << tau;
+                test::SlabProblem problem;
+                problem.tau = tau;
+                problem.omega0 = omega0;
+                problem.g = g;
+                problem.mu0 = std::cos(zenith * test::kPi / 180.0);
+                problem.groundAlbedo = 0.4;
+                const test::SlabResult exact = test::slabOverGround(problem);
+                const CloudBudget& b = transfer.budget();
+                std::printf("g %g sun %g tau %g omega0 %g: albedo %.5f exact %.5f (%+.3f %%), "
+                    "ground %.5f exact %.5f (%+.3f %%), %d sweeps, balance %.1e\n", g, zenith,
+                    tau, omega0, b.albedo, exact.reflectance,
+                    100.0 * (b.albedo / exact.reflectance - 1.0), b.transmittance,
+                    exact.transmittance, 100.0 * (b.transmittance / exact.transmittance - 1.0),
+                    transfer.iterationCount(), b.balance());
+                EXPECT_NEAR(b.albedo, exact.reflectance, 0.003 * exact.reflectance);
+                EXPECT_NEAR(b.transmittance, exact.transmittance, 0.006 * exact.transmittance);
+                EXPECT_NEAR(b.groundReflected, 0.4 * b.transmittance, 1e-12);
+                EXPECT_NEAR(b.balance(), 0.0, 1e-4);
+            }
+        }
+    }
+}
+
+// The ground alone (clear air above it) sends up everything it reflects: a periodic box
+// reflects exactly the ground's albedo for any sun (the weights reflect exactly rho E, Ground.h);
+// an open box lit at 60 degrees rho times the part of the beam that reaches its footprint (the
+// beam enters its sunlit side too, and leaves through the far side). The ground's grid holds
+// the direct irradiance, F0 cos(zenith) on every cell.
+TEST_F(CloudTest, ClearAirOverAGroundReflectsTheGroundsAlbedo)
+{
+    for (bool periodic : {true, false}) {
+        for (double zenith : {0.0, 60.0}) {
+            CloudTransferOptions o;
+            o.periodic = periodic;
+            o.groundAlbedo = 0.4;
+            o.sunZenith = zenith;
+            o.directions = 300;
+            o.irradiance = 3.0;
+            const Cloud cloud = slab(6, 5, 4, 0.0, 1.f);
+            CloudTransfer transfer(cloud, o);
+            transfer.solve();
+            ASSERT_TRUE(transfer.converged());
+            const CloudBudget& b = transfer.budget();
+            EXPECT_NEAR(b.albedo, b.groundReflected, 1e-6) << periodic << ' ' << zenith;
+            EXPECT_NEAR(b.transmittance, 1.0, 1e-9);
+            EXPECT_NEAR(b.balance(), 0.0, 1e-6);
+            EXPECT_EQ(b.absorptance, 0.0);
+            const openvdb::FloatGrid::Ptr ground = transfer.groundGrid();
+            ASSERT_TRUE(ground);
+            EXPECT_EQ(ground->activeVoxelCount(), openvdb::Index64(6 * 4));
+            EXPECT_EQ(ground->evalActiveVoxelBoundingBox(),
+                openvdb::CoordBBox(Coord(0, -1, 0), Coord(5, -1, 3)));
+            const double mu0 = std::cos(zenith * test::kPi / 180.0);
+            double mean = 0.0;
+            for (auto it = ground->cbeginValueOn(); it; ++it) {
+                EXPECT_LE(*it, 3.0 * mu0 * (1.0 + 1e-6)) << it.getCoord();
+                mean += *it / 24.0;
+            }
+            // Clear air: the whole footprint is lit, through the top and the sunlit side.
+            EXPECT_NEAR(mean, 3.0 * mu0, 1e-5) << zenith;
+            if (periodic || zenith == 0.0) {
+                EXPECT_NEAR(b.albedo, 0.4, 1e-6) << zenith;
+            } else {
+                // The beam enters the open box's top (6 x 4 voxels) and its sunlit side (5 x 4),
+                // and the ground sends up 0.4 times what lands on it, F0 mu0 on its 6 x 4.
+                const double top = 24.0 * mu0, side = 20.0 * std::sin(60.0 * test::kPi / 180.0);
+                // (The beam's rays, 2 x 2 per voxel face, sample the box's outline: 2 %.)
+                EXPECT_NEAR(b.albedo, 0.4 * top / (top + side), 0.03 * b.albedo);
+            }
+        }
+    }
+}
+
+// A white ground under a conservative cloud: nothing is absorbed anywhere, so everything comes
+// back up (the slowest loop, light between cloud and ground, converges under Anderson).
+TEST_F(CloudTest, WhiteGroundUnderAConservativeCloudReflectsEverything)
+{
+    for (double g : {0.0, 0.85}) {
+        CloudTransferOptions o;
+        o.periodic = true;
+        o.groundAlbedo = 1.0;
+        o.sunZenith = 30.0;
+        o.directions = 300;
+        if (g != 0.0) {
+            o.phase = PhaseFunction::henyeyGreenstein(g);
+            o.phaseOrder = 8;
+        }
+        CloudTransfer transfer(slab(1, 20, 1, 5.0, 1.f), o);
+        EXPECT_NE(transfer.describe().find("Anderson"), std::string::npos);
+        transfer.solve();
+        ASSERT_TRUE(transfer.converged()) << g;
+        const CloudBudget& b = transfer.budget();
+        std::printf("white ground, g %g: albedo %.7f, %d sweeps\n", g, b.albedo,
+            transfer.iterationCount());
+        EXPECT_NEAR(b.albedo, 1.0, 1e-4) << g;
+        EXPECT_EQ(b.absorptance, 0.0);
+        EXPECT_NEAR(b.groundReflected, b.transmittance, 1e-12);
+    }
+}
+
+// The 2D step cloud (res 32, sun 60 degrees, conservative, default settings) over a ground of
+// albedo 0.4 against the photon Monte Carlo of the same columns over the same ground: domain
+// albedo and the ground's mean irradiance within 0.5 % + 3 sigma, the balance to 1e-4.
+TEST_F(CloudTest, StepCloudOverAGroundAgreesWithMonteCarlo)
+{
+    grids::BuildParams params;
+    params.res = 32;
+    params.albedo = 1.f;
+    const Cloud cloud = buildCloud(grids::makeStepCloud(params));
+    CloudTransferOptions o;
+    o.periodic = true;
+    o.phase = PhaseFunction::henyeyGreenstein(0.85);
+    o.sunZenith = 60.0;
+    o.groundAlbedo = 0.4;
+    CloudTransfer transfer(cloud, o);
+    transfer.solve();
+    ASSERT_TRUE(transfer.converged());
+    test::ColumnsProblem p;
+    for (int c = 0; c < 32; ++c) p.columnTau.push_back(c < 16 ? 2.0 : 18.0);
+    p.omega0 = 1.0, p.g = 0.85, p.theta0 = 60.0, p.groundAlbedo = 0.4;
+    test::MonteCarloRun run;
+    run.photons = 1000000;
+    run.seed = 11;
+    const test::SlabResult mc = test::columnsMonteCarlo(p, run);
+    const CloudBudget& b = transfer.budget();
+    std::printf("step cloud over a ground of 0.4: R %.5f (MC %.5f, %+.2f %%), ground %.5f "
+        "(MC %.5f, %+.2f %%), %d sweeps\n", b.albedo, mc.reflectance,
+        100.0 * (b.albedo / mc.reflectance - 1.0), b.transmittance, mc.transmittance,
+        100.0 * (b.transmittance / mc.transmittance - 1.0), transfer.iterationCount());
+    EXPECT_NEAR(b.albedo, mc.reflectance, 0.005 * mc.reflectance + 3 * mc.reflectanceStderr);
+    EXPECT_NEAR(b.transmittance, mc.transmittance,
+        0.005 * mc.transmittance + 3 * mc.transmittanceStderr);
+    EXPECT_NEAR(b.balance(), 0.0, 1e-4);
+    // The ground's cells hold its irradiance: their mean is the transmittance times F0 mu0, but
+    // for what the periodic matching lets leave the box where no line re-enters (0.03 %) and
+    // the last sweep's against the mixed iterate's.
+    const std::vector<float> E = transfer.groundIrradiance();
+    ASSERT_EQ(E.size(), size_t(params.res));
+    double mean = 0.0;
+    for (float e : E) mean += double(e) / double(E.size());
+    EXPECT_NEAR(mean, 0.5 * b.transmittance, 5e-4 * mean);
+}

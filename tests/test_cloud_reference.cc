@@ -1,8 +1,9 @@
 // The cloud references of CloudReference.h against exact results, published values and each
 // other: Beer-Lambert for pure absorbers, energy balance, Chandrasekhar's H-function, the
-// Henyey-Greenstein moments, the conservative Eddington closed form, and Monte Carlo against
-// adding-doubling. Monte Carlo tolerances are multiples of the reported standard error; every run
-// has a fixed seed, so a pass or fail is reproducible.
+// Henyey-Greenstein moments, the conservative Eddington closed form, Monte Carlo against
+// adding-doubling, and both over a Lambertian ground (slabOverGround). Monte Carlo tolerances are
+// multiples of the reported standard error; every run has a fixed seed, so a pass or fail is
+// reproducible.
 //
 // The delta-Eddington table (g = 0.848, omega0 = 1, mu0 = 1) is printed for BENCHMARKS.md. For a
 // precise table set VDBRAD_CLOUD_REFERENCE_PHOTONS (photons per optical thickness, default 2e5):
@@ -410,6 +411,243 @@ TEST(ColumnsMonteCarlo, SlantedBeamThroughStepColumnsIsBeerLambert)
     EXPECT_GT(exact, 1.1 * std::exp(-2.5 / std::cos(60.0 * kPi / 180.0)));
     p.columnTau.clear();
     EXPECT_THROW(columnsMonteCarlo(p, photons(10, 1)), std::invalid_argument);
+}
+
+// ---- a Lambertian ground -----------------------------------------------------------------------
+
+namespace {
+
+/// R + A + groundAbsorptance = 1 in integers: each photon ends reflected, absorbed in the medium
+/// or absorbed by the ground, so the three fractions are counts over n.
+void
+expectGroundBalanced(const SlabResult& r, uint64_t n)
+{
+    const double dn = double(n);
+    const long long refl = std::llround(r.reflectance * dn);
+    const long long absorbed = std::llround(r.absorptance * dn);
+    const long long ground = std::llround(r.groundAbsorptance * dn);
+    EXPECT_EQ(double(refl) / dn, r.reflectance);  // counts, recovered exactly
+    EXPECT_EQ(double(absorbed) / dn, r.absorptance);
+    EXPECT_EQ(double(ground) / dn, r.groundAbsorptance);
+    EXPECT_EQ(refl + absorbed + ground, static_cast<long long>(n));
+    EXPECT_LE(r.groundAbsorptance, r.transmittance);  // the ground absorbs only what arrives
+    EXPECT_LE(r.directTransmittance, r.transmittance);
+}
+
+} // namespace
+
+TEST(Ground, BlackGroundLeavesEveryResultUnchanged)
+{
+    // Counts recorded before the ground existed (100000 photons, seed 7): groundAlbedo = 0 must
+    // draw the same random numbers and tally the same photons, and the box, which shares
+    // tracePhoton, must not notice the ground at all.
+    const SlabProblem slab{2.0, 0.9, 0.7, 0.6};
+    const SlabResult a = slabMonteCarlo(slab, photons(100000, 7));
+    EXPECT_EQ(a.reflectance, 22328 / 1e5);
+    EXPECT_EQ(a.transmittance, 44949 / 1e5);
+    EXPECT_EQ(a.absorptance, 32723 / 1e5);
+    EXPECT_EQ(a.directTransmittance, 3499 / 1e5);
+    EXPECT_EQ(a.groundAbsorptance, a.transmittance);  // the black ground absorbs all that arrives
+    EXPECT_EQ(a.groundAbsorptanceStderr, a.transmittanceStderr);
+    SlabProblem black = slab;
+    black.groundAlbedo = 0.0;  // explicitly, as the default
+    const SlabResult b = slabMonteCarlo(black, photons(100000, 7));
+    EXPECT_EQ(b.reflectance, a.reflectance);
+    EXPECT_EQ(b.transmittance, a.transmittance);
+    EXPECT_EQ(b.transmittanceStderr, a.transmittanceStderr);
+    EXPECT_EQ(b.directTransmittance, a.directTransmittance);
+
+    ColumnsProblem c;
+    c.columnTau = {0.5, 4.5, 2.0};
+    c.omega0 = 0.95, c.g = 0.85, c.theta0 = 50.0, c.phi0 = 30.0;
+    const SlabResult col = columnsMonteCarlo(c, photons(100000, 7));
+    EXPECT_EQ(col.reflectance, 16021 / 1e5);
+    EXPECT_EQ(col.transmittance, 63186 / 1e5);
+    EXPECT_EQ(col.absorptance, 20793 / 1e5);
+    EXPECT_EQ(col.directTransmittance, 5552 / 1e5);
+    EXPECT_EQ(col.groundAbsorptance, col.transmittance);
+
+    BoxProblem box;
+    box.sizeX = 2.0, box.sizeY = 1.0, box.sizeZ = 3.0, box.sigma = 2.0;
+    box.omega0 = 0.9, box.g = 0.5, box.theta0 = 40.0, box.phi0 = 20.0;
+    const BoxResult br = boxMonteCarlo(box, photons(100000, 7));
+    EXPECT_EQ(br.reflectance, 19989 / 1e5);
+    EXPECT_EQ(br.transmittance, 62616 / 1e5);
+    EXPECT_EQ(br.absorptance, 17395 / 1e5);
+    EXPECT_EQ(br.directTransmittance, 26306 / 1e5);
+    EXPECT_EQ(br.faceFraction[2], 33929 / 1e5);
+    EXPECT_EQ(br.groundAbsorptance, 0.0);  // no ground under a box
+
+    // The adding method over a black ground is the doubling slab itself (1e-12: the same
+    // numbers, through a geometric series of ratio 0).
+    for (double tau : {0.5, 10.0}) {
+        for (double g : {0.0, 0.85}) {
+            for (double mu0 : {1.0, 0.5}) {
+                const SlabProblem p{tau, 0.9, g, mu0};
+                const SlabResult ad = addingDoublingSlab(p), og = slabOverGround(p);
+                EXPECT_NEAR(og.reflectance, ad.reflectance, 1e-12) << tau << " " << g << " " << mu0;
+                EXPECT_NEAR(og.transmittance, ad.transmittance, 1e-12);
+                EXPECT_NEAR(og.absorptance, ad.absorptance, 1e-12);
+                EXPECT_NEAR(og.groundAbsorptance, ad.transmittance, 1e-12);
+                EXPECT_EQ(og.directTransmittance, ad.directTransmittance);
+            }
+        }
+    }
+}
+
+TEST(Ground, WithoutASlabTheGroundAloneReflects)
+{
+    // tau = 0: every photon reaches the ground once, so R = rho (a Bernoulli mean for the Monte
+    // Carlo: 4 standard errors of it), T = 1 and all of it direct, exactly.
+    for (double rho : {0.0, 0.3, 1.0}) {
+        const SlabResult og = slabOverGround({0.0, 0.9, 0.5, 0.6, rho});
+        EXPECT_EQ(og.reflectance, rho);
+        EXPECT_EQ(og.transmittance, 1.0);
+        EXPECT_EQ(og.groundAbsorptance, 1.0 - rho);
+        EXPECT_EQ(og.absorptance, 0.0);
+        // Continuous as the slab appears: tau = 1e-6 changes R by O(tau / mu) only.
+        EXPECT_NEAR(slabOverGround({1e-6, 0.9, 0.5, 0.6, rho}).reflectance, rho, 1e-5) << rho;
+
+        const uint64_t n = 200000;
+        const SlabResult mc = slabMonteCarlo({0.0, 0.9, 0.5, 0.6, rho}, photons(n, 31));
+        expectGroundBalanced(mc, n);
+        const double se = std::sqrt(rho * (1.0 - rho) / double(n));
+        EXPECT_NEAR(mc.reflectance, rho, 4.0 * se) << rho;
+        EXPECT_EQ(mc.transmittance, 1.0);
+        EXPECT_EQ(mc.directTransmittance, 1.0);
+        EXPECT_EQ(mc.transmittanceStderr, 0.0);  // one arrival each: no spread
+    }
+}
+
+TEST(Ground, WhiteGroundUnderAConservativeSlabReflectsEverything)
+{
+    // rho = 1, omega0 = 1: nothing can be absorbed anywhere, so all light leaves the top,
+    // whatever tau. The adding formula gets R = 1 only through R_s + T_s = 1 and
+    // Rbar + Tbar = 1, i.e. to the doubling's conservation error (measured 1.1e-10 at tau 10).
+    // With rho < 1 the conservative slab still absorbs nothing: R + groundAbsorptance = 1.
+    for (double tau : {1.0, 10.0}) {
+        for (double g : {0.0, 0.85}) {
+            for (double mu0 : {1.0, 0.5}) {
+                const SlabResult white = slabOverGround({tau, 1.0, g, mu0, 1.0});
+                EXPECT_NEAR(white.reflectance, 1.0, 1e-9) << tau << " " << g << " " << mu0;
+                EXPECT_EQ(white.groundAbsorptance, 0.0);
+                EXPECT_GT(white.transmittance, 0.0);
+                EXPECT_NEAR(slabOverGround({tau, 1.0, g, mu0, 0.4}).absorptance, 0.0, 1e-9);
+            }
+        }
+    }
+    // The Monte Carlo: R = 1 exactly (every photon leaves the top eventually).
+    const SlabResult mc = slabMonteCarlo({2.0, 1.0, 0.85, 0.5, 1.0}, photons(20000, 32));
+    EXPECT_EQ(mc.reflectance, 1.0);
+    EXPECT_EQ(mc.groundAbsorptance, 0.0);
+    EXPECT_EQ(mc.absorptance, 0.0);
+}
+
+TEST(Ground, SphericalAlbedoQuadratureConverges)
+{
+    // Rbar and Tbar integrate R_s(mu) mu and T_s(mu) mu (T_s carries the steep beam
+    // exp(-tau/mu)) by Gauss-Legendre in mu: 24 and 48 points agree to 9e-10 at most over this
+    // grid (12 points: 1.2e-7, at tau = 0.5, g = 0.85); asserted 1e-8.
+    for (double tau : {0.5, 2.0, 20.0}) {
+        for (double g : {0.0, 0.85}) {
+            for (double mu0 : {1.0, 0.5}) {
+                const SlabProblem p{tau, 0.9, g, mu0, 0.4};
+                const SlabResult a = slabOverGround(p, 64, 24), b = slabOverGround(p, 64, 48);
+                const std::string at = std::to_string(tau) + " " + std::to_string(g) + " "
+                    + std::to_string(mu0);
+                EXPECT_NEAR(a.reflectance, b.reflectance, 1e-8) << at;
+                EXPECT_NEAR(a.transmittance, b.transmittance, 1e-8) << at;
+            }
+        }
+    }
+    EXPECT_THROW(slabOverGround({1.0, 1.0, 0.0, 1.0, 1.5}), std::invalid_argument);
+    EXPECT_THROW(slabOverGround({1.0, 1.0, 0.0, 1.0, 0.5}, 64, 0), std::invalid_argument);
+    EXPECT_THROW(slabMonteCarlo({1.0, 1.0, 0.0, 1.0, -0.1}), std::invalid_argument);
+    ColumnsProblem c;
+    c.columnTau = {1.0};
+    c.groundAlbedo = 2.0;
+    EXPECT_THROW(columnsMonteCarlo(c), std::invalid_argument);
+}
+
+TEST(Ground, SlabMonteCarloMatchesTheAddingMethod)
+{
+    // rho = 0.4 under thin and thick, conservative and absorbing, isotropic and cloud-like slabs,
+    // overhead and oblique sun. 4 standard errors of the Monte Carlo (the adding method is exact
+    // to ~1e-9 here): R and groundAbsorptance are per-photon outcomes (binomial), the
+    // transmittance a mean number of arrivals per photon with its sample variance (1.2-7 times
+    // the binomial value: the returns to the ground).
+    const uint64_t n = 200000;
+    uint64_t seed = 40;
+    for (double tau : {2.0, 10.0}) {
+        for (double omega0 : {1.0, 0.9}) {
+            for (double g : {0.0, 0.85}) {
+                for (double mu0 : {1.0, 0.5}) {
+                    const SlabProblem p{tau, omega0, g, mu0, 0.4};
+                    const SlabResult mc = slabMonteCarlo(p, photons(n, ++seed));
+                    const SlabResult og = slabOverGround(p);
+                    expectGroundBalanced(mc, n);
+                    const std::string at = "tau " + std::to_string(tau) + " omega0 "
+                        + std::to_string(omega0) + " g " + std::to_string(g) + " mu0 "
+                        + std::to_string(mu0);
+                    EXPECT_NEAR(mc.reflectance, og.reflectance, 4.0 * mc.reflectanceStderr) << at;
+                    EXPECT_NEAR(mc.transmittance, og.transmittance, 4.0 * mc.transmittanceStderr)
+                        << at;
+                    EXPECT_NEAR(mc.groundAbsorptance, og.groundAbsorptance,
+                        4.0 * mc.groundAbsorptanceStderr) << at;
+                    EXPECT_NEAR(mc.directTransmittance, og.directTransmittance,
+                        4.0 * std::sqrt(og.directTransmittance / double(n))) << at;
+                }
+            }
+        }
+    }
+    // The arrivals can outnumber the photons: a thin forward-scattering slab sends nearly all
+    // the beam down and returns part of what the ground reflects (E = 1.012 here).
+    const SlabProblem thin{0.5, 1.0, 0.85, 1.0, 0.4};
+    const SlabResult og = slabOverGround(thin);
+    const SlabResult mc = slabMonteCarlo(thin, photons(n, 50));
+    EXPECT_GT(og.transmittance, 1.01);
+    EXPECT_NEAR(mc.transmittance, og.transmittance, 4.0 * mc.transmittanceStderr);
+    EXPECT_GT(mc.transmittance, 1.0);
+    expectGroundBalanced(mc, n);
+}
+
+TEST(Ground, ResultDependsOnlyOnTheSeed)
+{
+    // The ground's extra draws come from the photon's own chunk stream: threaded and serial
+    // runs still agree bit for bit, and a reflecting ground changes the result.
+    const SlabProblem p{3.0, 0.9, 0.7, 0.8, 0.5};
+    MonteCarloRun serial = photons(50000, 5);
+    serial.threaded = false;
+    const SlabResult a = slabMonteCarlo(p, photons(50000, 5)), b = slabMonteCarlo(p, serial);
+    EXPECT_EQ(a.reflectance, b.reflectance);
+    EXPECT_EQ(a.transmittance, b.transmittance);
+    EXPECT_EQ(a.transmittanceStderr, b.transmittanceStderr);
+    EXPECT_EQ(a.groundAbsorptance, b.groundAbsorptance);
+    const SlabResult black = slabMonteCarlo({3.0, 0.9, 0.7, 0.8}, photons(50000, 5));
+    EXPECT_GT(a.reflectance, black.reflectance);
+    EXPECT_GT(a.transmittance, black.transmittance);
+}
+
+TEST(Ground, EqualColumnsOverGroundAreTheSlab)
+{
+    // Columns of one optical thickness over the ground are the slab over it; the ground
+    // reflects at the landing point, which then matters for the columns' periodic x. Against
+    // the adding method, 4 standard errors.
+    const uint64_t n = 300000;
+    for (double theta0 : {0.0, 60.0}) {
+        ColumnsProblem p;
+        p.columnTau.assign(5, 3.0);
+        p.omega0 = 0.95, p.g = 0.85, p.theta0 = theta0, p.phi0 = 30.0, p.groundAlbedo = 0.4;
+        const SlabResult c = columnsMonteCarlo(p, photons(n, 61));
+        const SlabResult og =
+            slabOverGround({3.0, 0.95, 0.85, std::cos(theta0 * kPi / 180.0), 0.4});
+        expectGroundBalanced(c, n);
+        EXPECT_NEAR(c.reflectance, og.reflectance, 4.0 * c.reflectanceStderr) << theta0;
+        EXPECT_NEAR(c.transmittance, og.transmittance, 4.0 * c.transmittanceStderr) << theta0;
+        EXPECT_NEAR(c.groundAbsorptance, og.groundAbsorptance, 4.0 * c.groundAbsorptanceStderr)
+            << theta0;
+        EXPECT_NEAR(c.absorptance, og.absorptance, 4.0 * c.absorptanceStderr) << theta0;
+    }
 }
 
 // ---- delta-Eddington ---------------------------------------------------------------------------

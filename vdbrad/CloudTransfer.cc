@@ -2,6 +2,7 @@
 
 #include "vdbrad/Denormals.h"
 #include "vdbrad/Errors.h"
+#include "vdbrad/Ground.h"
 #include "vdbrad/HarmonicQuadrature.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/LineSweep.h"
@@ -107,10 +108,18 @@ struct CloudTransfer::Impl
     static constexpr int kGroups = SweepSchedule::kGroups;
 
     size_t n = 0;
-    // A narrow periodic box is solved as copies side by side (periodicCopies()): that medium,
-    // and per voxel of it, the voxel of the given cloud it copies. Null: the cloud as given.
-    std::unique_ptr<Cloud> tiled;
+    // The medium solved where it is not the cloud as given: a narrow periodic box as copies side
+    // by side (periodicCopies()), and a ground's layer under it (Ground.h); per voxel of it, the
+    // voxel of the given cloud it copies, or GroundLayer::kGround. Null: the cloud as given.
+    std::unique_ptr<Cloud> solved;
     std::vector<uint32_t> copyOf;
+    // A Lambertian ground (CloudTransferOptions::groundAlbedo): its layer and albedo, per cell
+    // the direct beam's power landing there and the diffuse light's (the last sweep's), per
+    // direction pair the radiance an upward line gains per unit of reflected power.
+    std::optional<GroundLayer> ground;
+    double groundAlbedo = 0.0;
+    std::vector<double> groundDirect, groundDiffuse, groundGain;
+    openvdb::CoordBBox box;          // of the medium solved (and the ground's layer)
     std::vector<float> kappa;        // optical depth per voxel length
     std::vector<float> omega;        // single-scattering albedo
     std::vector<float> beamJ;        // mean radiance of the direct beam, D / (4 pi kappa)
@@ -142,16 +151,19 @@ struct CloudTransfer::Impl
     FlatAxes flat{};
 
     // The sweeps of one iteration: every group's directions, from the sources S (n x M moments'
-    // coefficients) and B (the beam's first scattering) in each pattern's order, into the
-    // groups' moment sums G; light leaving the box goes to escaped (0 down, 1 up), light
-    // wrapping around a periodic box to leftNow.
+    // coefficients) and B (the beam's first scattering) in each pattern's order, and the power
+    // each ground cell reflects, into the groups' moment sums G; light leaving the box goes to
+    // escaped (0 down, 1 up), light wrapping around a periodic box to leftNow, light reaching
+    // the ground to the group's landed (per cell).
     struct Sweep
     {
         const std::array<std::vector<float>, SweepSchedule::kPatterns>& S;
         const std::array<std::vector<float>, SweepSchedule::kPatterns>& B;
+        const std::vector<double>& groundEmits;
         std::array<std::vector<float>, SweepSchedule::kGroups> G;
         std::array<std::array<double, 2>, SweepSchedule::kGroups> escaped{};
         std::vector<double> leftNow;
+        std::array<std::vector<double>, SweepSchedule::kGroups> landed;
     };
     // Anisotropic scattering works on a batch of a group's directions at a time: the sources'
     // higher-moment part for every voxel and (direction, sense) of the batch by one product of
@@ -211,6 +223,10 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         OPENVDB_THROW(openvdb::ValueError, "phase order must be >= 0 (or -1: auto), got "
             << options.phaseOrder);
     }
+    if (options.groundAlbedo && !(*options.groundAlbedo >= 0.0 && *options.groundAlbedo <= 1.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "ground albedo must be in [0, 1], got "
+            << *options.groundAlbedo);
+    }
     mOptions.phaseOrder = phaseOrderFor(options);
     mOptions.directions = directionCount(options);
     mOptions.accelerate = mIteration.acceleration();   // chosen once, for the base class
@@ -227,10 +243,23 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     }
     Impl& impl = *mImpl;
     mCopies = copiesFor(given, options, directions.size());
-    if (mCopies != Coord(1)) impl.tiled.reset(new Cloud(tileCloud(given, mCopies, &impl.copyOf)));
+    if (mCopies != Coord(1)) impl.solved.reset(new Cloud(tileCloud(given, mCopies, &impl.copyOf)));
+    if (options.groundAlbedo) {
+        impl.groundAlbedo = *options.groundAlbedo;
+        const Cloud& above = impl.solved ? *impl.solved : given;
+        impl.ground.emplace(above.voxels().bbox(), options.up);
+        std::vector<uint32_t> from;
+        Cloud grounded = impl.ground->withGround(above, &from);
+        if (impl.solved) {
+            for (uint32_t& f : from) if (f != GroundLayer::kGround) f = impl.copyOf[f];
+        }
+        impl.copyOf = std::move(from);
+        impl.solved.reset(new Cloud(std::move(grounded)));
+    }
     // From here on, the medium solved.
-    const Cloud& cloud = impl.tiled ? *impl.tiled : given;
+    const Cloud& cloud = impl.solved ? *impl.solved : given;
     const size_t n = impl.n = cloud.size();
+    impl.box = cloud.voxels().bbox();
     const double h = cloud.voxelSize();
     impl.kappa.resize(n);
     impl.omega.resize(n);
@@ -267,12 +296,20 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         std::frexp(options.irradiance, &exponent);
     }
     impl.outputScale = std::ldexp(1.0, exponent);
+    const GroundLayer* layer = impl.ground ? &*impl.ground : nullptr;
     SolarBeamResult beam = traceSolarBeam(cloud.voxels(), impl.kappa, toSun, up, options.periodic,
-        options.beamRaysPerVoxel, options.irradiance / impl.outputScale, interrupt);
+        options.beamRaysPerVoxel, options.irradiance / impl.outputScale, interrupt, layer);
     if (interrupt) interrupt->end();
     impl.incident = beam.incident;
-    impl.directOut = beam.transmitted;
     impl.deposited = std::move(beam.deposited);
+    // What lands on the ground is counted there (sweep()); directOut is the rest.
+    impl.directOut = beam.transmitted;
+    if (impl.ground) {
+        impl.groundDirect = std::move(beam.ground);
+        impl.groundDiffuse.assign(impl.ground->size(), 0.0);
+        for (double e : impl.groundDirect) impl.directOut -= e;
+        impl.directOut = std::max(impl.directOut, 0.0);
+    }
     impl.beamJ.resize(n);
     for (size_t i = 0; i < n; ++i) {
         impl.beamJ[i] = impl.kappa[i] > 0.f
@@ -298,8 +335,10 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
             impl.flat));
         impl.leftFace.assign(impl.boundary->size(), 0.0);
     }
-    // The moments and the light carried across periodic side faces (see iterate()).
-    impl.mixer = mIteration.makeMixer<float>(n * size_t(impl.M) + impl.leftFace.size());
+    // The moments, the light carried across periodic side faces and the ground's (see
+    // iterate()).
+    impl.mixer = mIteration.makeMixer<float>(n * size_t(impl.M) + impl.leftFace.size()
+        + impl.groundDiffuse.size());
     // Escape factors for the self-scattering elimination (iterate()): per direction, the
     // weight Omega (Y_00^2 of both senses) the sweeps use.
     {
@@ -313,6 +352,15 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
             step[d] = sweptLine(schedule.directions().direction(d), impl.flat).step;
         }
         impl.escape = meanEscapeFactors(impl.kappa, step, weight);
+        if (impl.ground) {
+            std::vector<float> omega(dirs);
+            std::vector<double> mu(dirs);
+            for (size_t d = 0; d < dirs; ++d) {
+                omega[d] = float(kPi * schedule.directions().factor(d));
+                mu[d] = std::abs(schedule.directions().unit(d)[up]);
+            }
+            impl.groundGain = groundEmission(omega, mu, step);
+        }
     }
     mIteration.addSeconds(
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
@@ -372,7 +420,11 @@ CloudTransfer::chooseAcceleration(const Cloud& cloud, const CloudTransferOptions
         if (scaled > 0.0) omegaMax = std::max(omegaMax, w * (1.0 - f) / scaled);
     }
     if (!std::isfinite(tauMax)) return Acceleration::Anderson;
-    const double slowest = omegaMax * tauMax / (tauMax + 2.0);
+    // A ground of albedo rho sends back up rho times what the cloud lets through, and the cloud
+    // reflects about that same fraction of it down again: one more loop, at most rho s.
+    const double cloudAlone = omegaMax * tauMax / (tauMax + 2.0);
+    const double rho = options.groundAlbedo.value_or(0.0);
+    const double slowest = cloudAlone + (1.0 - cloudAlone) * rho * cloudAlone;
     return slowest > 0.5 ? Acceleration::Anderson : Acceleration::None;
 }
 
@@ -463,6 +515,28 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
     LineSweep::Lanes<Ray>& work = lanes.local();
     const bool linear = t.mOptions.source == VoxelSource::Linear;
     const int major = part.majorAxis();
+    // The ground (Ground.h): where light lands, and per unit of reflected power the radiance
+    // the upward sense gains (the downward sense and horizontal lines gain nothing).
+    const GroundLayer* layer = ground ? &*ground : nullptr;
+    std::vector<double>* landed = layer ? &sw.landed[size_t(g)] : nullptr;
+    const bool upward[2] = {unit[up] > 0.0, unit[up] < 0.0};
+    const double gain = layer ? groundGain[d] : 0.0;
+    // Light going down from voxel c along t onto the ground cell under the point where its line
+    // meets the layer: wrapped around a periodic box, missed (false) outside an open one's.
+    auto land = [&](const Coord& c, const Vec3d& t, double power) {
+        const Vec3d p = c.asVec3d() + t * ((layer->layer() - c[up]) / t[up]);
+        Coord ijk;
+        for (int k = 0; k < 3; ++k) {
+            if (k == up) { ijk[k] = layer->layer(); continue; }
+            int v = int(std::lround(p[k]));
+            const int lo = this->box.min()[k], dim = this->box.dim()[k];
+            if (periodic) v = lo + ((v - lo) % dim + dim) % dim;
+            else if (v < lo || v >= lo + dim) return false;
+            ijk[k] = v;
+        }
+        (*landed)[layer->cell(ijk)] += power;
+        return true;
+    };
     // The pending voxel of @a ray, its source rising by the slope from the one before it and
     // @a after (the next one's source, null at a gap or the line's end): its moments, and the
     // radiance that leaves it. Compiled apart for a constant source (Lin false), which is then
@@ -512,6 +586,25 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                 // An isolated line holds one voxel: nothing comes in from the one before.
                 if (line.isolated) ray.radiance = 0.f;
                 const size_t sense = forward ? 0 : 1;
+                if (layer && layer->contains(pattern.sweep->coord(x))) {
+                    // A ground cell: the voxel before it (going down) ends at a gap; light
+                    // going up gathers what the cell reflects (once per sweep: not in the
+                    // wrap passes), light going down stays.
+                    if constexpr (decltype(lin)::value) {
+                        if (ray.pending) finish(lin, ray, ray.s, ray.r, ray.b, sense, nullptr);
+                        ray.hasBefore = false;
+                    }
+                    const size_t cell = layer->cell(pattern.sweep->coord(x));
+                    if (upward[sense]) {
+                        if (sources) ray.radiance += float(sw.groundEmits[cell] * gain);
+                    } else {
+                        (*landed)[cell] += double(ray.radiance) * etendue;
+                        ray.radiance = 0.f;
+                    }
+                    ray.last = x;
+                    ray.pending = false;
+                    return;
+                }
                 const float* y = yAcc[sense];
                 // The source: its isotropic part s0, its higher moments' part r and the beam's
                 // first scattering b.
@@ -560,6 +653,11 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                     if (dir[up] == 0.0) {
                         escaped[0] += 0.5 * power;
                         escaped[1] += 0.5 * power;
+                    } else if (dir[up] < 0.0 && layer
+                        && land(pattern.sweep->coord(ray.last), dir, power)) {
+                        // A line that ends above the ground without crossing its layer (at
+                        // the bound of a centred partition's central line): on the cell where
+                        // it meets the layer.
                     } else {
                         escaped[dir[up] > 0.0 ? 1 : 0] += power;
                     }
@@ -625,11 +723,18 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         schedule.toPatternOrder(p, source, S[p], M);
         schedule.toPatternOrder(p, beamSource, B[p]);
     }
-    Impl::Sweep sw{S, B, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0)};
+    // What each ground cell reflects in this sweep: its albedo times what reached it.
+    const size_t cells = impl.groundDiffuse.size();
+    std::vector<double> emits(cells);
+    for (size_t c = 0; c < cells; ++c) {
+        emits[c] = impl.groundAlbedo * (impl.groundDirect[c] + impl.groundDiffuse[c]);
+    }
+    Impl::Sweep sw{S, B, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {}};
     SweepProgress progress(interrupt, directions().size());
     const size_t perBatch = Impl::batchSize(n, M);
     schedule.forEachGroup(progress, "cloud transfer", [](int) { return true; }, [&](int g) {
         sw.G[size_t(g)].assign(n * M, 0.f);
+        sw.landed[size_t(g)].assign(cells, 0.0);
         std::vector<size_t> dirs;
         schedule.forDirections(g, [&](size_t d) { dirs.push_back(d); });
         for (size_t b = 0; b < dirs.size() && !progress.cancelled(); b += perBatch) {
@@ -651,6 +756,12 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     if (impl.mixer) {
         x = impl.moments;
         x.insert(x.end(), impl.leftFace.begin(), impl.leftFace.end());
+        x.insert(x.end(), impl.groundDiffuse.begin(), impl.groundDiffuse.end());
+    }
+    // Light that reached the ground, the groups added in a fixed order.
+    std::vector<double> landed(cells, 0.0);
+    for (const std::vector<double>& part : sw.landed) {
+        for (size_t c = 0; c < cells; ++c) landed[c] += part[c];
     }
     // Self-scattering elimination. Of what a voxel scatters isotropically, the fraction
     // 1 - M_v is extinguished again in the voxel itself: the sweep maps I_00 to
@@ -690,6 +801,16 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         absorbed += double(1.f - impl.omega[i])
             * (impl.deposited[i] + 4.0 * kPi * double(impl.kappa[i]) * double(J));
     }
+    // The ground's reflected radiance, rho E / pi, is an unknown as J is.
+    double onGround = 0.0, directOnGround = 0.0;
+    for (size_t c = 0; c < cells; ++c) {
+        const double k = impl.groundAlbedo / kPi;
+        maxChange = std::max(maxChange, k * std::abs(landed[c] - impl.groundDiffuse[c]));
+        maxJ = std::max(maxJ, k * (impl.groundDirect[c] + landed[c]));
+        onGround += impl.groundDirect[c] + landed[c];
+        directOnGround += impl.groundDirect[c];
+    }
+    impl.groundDiffuse = landed;
 
     if (impl.boundary) impl.leftFace.swap(sw.leftNow);
     if (impl.mixer) {
@@ -698,13 +819,16 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         // negative mean radiance or carried power is refused (the plain step is kept).
         std::vector<float> gx = impl.moments;
         gx.insert(gx.end(), impl.leftFace.begin(), impl.leftFace.end());
+        gx.insert(gx.end(), impl.groundDiffuse.begin(), impl.groundDiffuse.end());
         andersonStep(*impl.mixer, x.data(), gx.data(), [&](const float* v) {
             for (size_t i = 0; i < n; ++i) if (!(v[i * M] >= 0.f)) return false;
             for (size_t k = n * M; k < gx.size(); ++k) if (!(v[k] >= 0.f)) return false;
             return true;
         });
-        std::copy(gx.begin(), gx.begin() + long(n * M), impl.moments.begin());
-        std::copy(gx.begin() + long(n * M), gx.end(), impl.leftFace.begin());
+        const auto faces = gx.begin() + long(n * M), lands = faces + long(impl.leftFace.size());
+        std::copy(gx.begin(), faces, impl.moments.begin());
+        std::copy(faces, lands, impl.leftFace.begin());
+        std::copy(lands, gx.end(), impl.groundDiffuse.begin());
         for (size_t i = 0; i < n; ++i) impl.diffuseJ[i] = float(double(impl.moments[i * M]) * y00);
     }
     // Light leaving the box, added in a fixed order: pattern by pattern, then its two halves
@@ -722,9 +846,10 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     const double in = impl.incident > 0.0 ? impl.incident : 1.0;
     mBudget.incident = impl.incident * impl.outputScale;
     mBudget.albedo = up0 / in;
-    mBudget.transmittance = (down0 + impl.directOut) / in;
-    mBudget.directTransmittance = impl.directOut / in;
+    mBudget.transmittance = (down0 + impl.directOut + onGround) / in;
+    mBudget.directTransmittance = (impl.directOut + directOnGround) / in;
     mBudget.absorptance = absorbed / in;
+    mBudget.groundReflected = impl.groundAlbedo * onGround / in;
     return maxJ > 0.0 ? maxChange / maxJ : 0.0;
 }
 
@@ -740,7 +865,16 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
 {
     const Coord copies = periodicCopies(cloud, options);
     const size_t tiles = size_t(copies.x()) * size_t(copies.y()) * size_t(copies.z());
-    const size_t n = cloud.size() * tiles, t = size_t(std::max(threads, 1));
+    // A ground adds a layer of voxels under the copies' footprint.
+    size_t footprint = 0;
+    if (options.groundAlbedo) {
+        const Coord dim = cloud.voxels().bbox().dim();
+        footprint = 1;
+        for (int k = 0; k < 3; ++k) {
+            if (k != options.up) footprint *= size_t(dim[k]) * size_t(copies[k]);
+        }
+    }
+    const size_t n = cloud.size() * tiles + footprint, t = size_t(std::max(threads, 1));
     const int order = phaseOrderFor(options);
     const size_t M = size_t(order + 1) * size_t(order + 1);
     const bool anderson = chooseAcceleration(cloud, options) == Acceleration::Anderson;
@@ -757,8 +891,9 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     if (anderson) {
         perVoxel += 8 * M + AndersonMixer::bytes(M, options.andersonDepth);   // + x, G(x)
     }
-    // The copies of a narrow periodic box: coordinates, extinction, the copy's source, index.
-    if (tiles > 1) perVoxel += 12 + 4 + 4 + 8;
+    // The copies of a narrow periodic box, or the ground's layer added: coordinates,
+    // extinction, the voxel copied, index.
+    if (tiles > 1 || footprint > 0) perVoxel += 12 + 4 + 4 + 8;
     size_t bytes = n * perVoxel;
     if (options.periodic) {
         // Light carried across the side faces: per direction, sense, face and layer, twice.
@@ -790,7 +925,9 @@ CloudTransfer::fingerprint() const
         phaseOrderFor(mOptions), int64_t(*mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
         impl.M, mCopies.x(), mCopies.y(), mCopies.z(), int64_t(mOptions.source),
         mQuadratureDegree, impl.flat[0] + 2 * impl.flat[1] + 4 * impl.flat[2]};
-    return hashBytes(options, sizeof options, h);
+    h = hashBytes(options, sizeof options, h);
+    if (impl.ground) h = hashBytes(&impl.groundAlbedo, sizeof(double), h);
+    return h;
 }
 
 void
@@ -804,6 +941,7 @@ CloudTransfer::saveState(SolverState& state) const
     state.put("diffuseJ", impl.diffuseJ);
     state.put("moments", impl.moments);
     state.put("leftFace", impl.leftFace);
+    if (impl.ground) state.put("groundDiffuse", impl.groundDiffuse);
     if (impl.mixer) impl.mixer->save(state, "anderson.");
 }
 
@@ -816,6 +954,9 @@ CloudTransfer::restoreState(const SolverState& state)
     impl.diffuseJ = state.get<float>("diffuseJ", impl.diffuseJ.size());
     impl.moments = state.get<float>("moments", impl.moments.size());
     impl.leftFace = state.get<double>("leftFace", impl.leftFace.size());
+    if (impl.ground) {
+        impl.groundDiffuse = state.get<double>("groundDiffuse", impl.groundDiffuse.size());
+    }
     if (impl.mixer) impl.mixer->restore(state, "anderson.");
     mBudget.incident = budget[0];
     mBudget.albedo = budget[1];
@@ -830,7 +971,7 @@ CloudTransfer::meanIntensity() const
     const Impl& impl = *mImpl;
     const double scale = impl.outputScale;
     std::vector<float> J(mCloud.size());
-    if (!impl.tiled) {
+    if (!impl.solved) {
         for (size_t i = 0; i < J.size(); ++i) {
             J[i] = float(double(impl.diffuseJ[i] + impl.beamJ[i]) * scale);
         }
@@ -839,11 +980,52 @@ CloudTransfer::meanIntensity() const
     // The mean over a voxel's copies (every voxel has the same number of them).
     std::vector<double> sum(J.size(), 0.0);
     for (size_t i = 0; i < impl.n; ++i) {
+        if (impl.copyOf[i] == GroundLayer::kGround) continue;
         sum[impl.copyOf[i]] += double(impl.diffuseJ[i] + impl.beamJ[i]);
     }
-    const double per = scale / double(impl.n / J.size());
+    const double per = scale / (double(mCopies.x()) * double(mCopies.y()) * double(mCopies.z()));
     for (size_t i = 0; i < J.size(); ++i) J[i] = float(sum[i] * per);
     return J;
+}
+
+std::vector<float>
+CloudTransfer::groundIrradiance() const
+{
+    const Impl& impl = *mImpl;
+    if (!impl.ground) return {};
+    // The given box's ground; a cell of the copies' ground is the one a period away from it.
+    const openvdb::CoordBBox box = mCloud.voxels().bbox();
+    const GroundLayer given(box, mOptions.up);
+    const Coord dim = box.dim();
+    std::vector<double> sum(given.size(), 0.0);
+    for (size_t c = 0; c < impl.ground->size(); ++c) {
+        Coord ijk = impl.ground->coord(c);
+        for (int k = 0; k < 3; ++k) {
+            if (k != mOptions.up) ijk[k] = box.min()[k] + (ijk[k] - box.min()[k]) % dim[k];
+        }
+        sum[given.cell(ijk)] += impl.groundDirect[c] + impl.groundDiffuse[c];
+    }
+    const double per = impl.outputScale / double(impl.ground->size() / given.size());
+    std::vector<float> E(given.size());
+    for (size_t c = 0; c < E.size(); ++c) E[c] = float(sum[c] * per);
+    return E;
+}
+
+openvdb::FloatGrid::Ptr
+CloudTransfer::groundGrid(const std::string& name) const
+{
+    const std::vector<float> E = groundIrradiance();
+    if (E.empty()) return nullptr;
+    const GroundLayer layer(mCloud.voxels().bbox(), mOptions.up);
+    openvdb::FloatGrid::Ptr g = openvdb::FloatGrid::create(0.f);
+    g->setTransform(mCloud.transform().copy());
+    g->setName(name);
+    openvdb::FloatGrid::Accessor acc = g->getAccessor();
+    for (size_t c = 0; c < E.size(); ++c) acc.setValueOn(layer.coord(c), E[c]);
+    g->insertMeta("vdbrad:ground_albedo", openvdb::FloatMetadata(float(mImpl->groundAlbedo)));
+    g->insertMeta(meta::kIterations, openvdb::Int32Metadata(iterationCount()));
+    g->insertMeta(meta::kVersion, openvdb::StringMetadata(VDBRAD_VERSION_STRING));
+    return g;
 }
 
 openvdb::GridBase::Ptr
@@ -854,6 +1036,10 @@ CloudTransfer::grid(const std::string& name) const
     g->insertMeta("vdbrad:albedo", openvdb::FloatMetadata(float(mBudget.albedo)));
     g->insertMeta("vdbrad:transmittance", openvdb::FloatMetadata(float(mBudget.transmittance)));
     g->insertMeta("vdbrad:absorptance", openvdb::FloatMetadata(float(mBudget.absorptance)));
+    if (mImpl->ground) {
+        g->insertMeta("vdbrad:ground_reflected",
+            openvdb::FloatMetadata(float(mBudget.groundReflected)));
+    }
     g->insertMeta(meta::kIterations, openvdb::Int32Metadata(iterationCount()));
     g->insertMeta(meta::kResidual, openvdb::FloatMetadata(float(mIteration.lastResidual())));
     g->insertMeta(meta::kDirections, openvdb::Int32Metadata(int(directions().size())));
@@ -886,12 +1072,14 @@ CloudTransfer::describe() const
     }
     if (mOptions.accelerate == Acceleration::Anderson) os << ", Anderson acceleration";
     if (mOptions.source == VoxelSource::Constant) os << ", constant source per voxel";
+    if (mImpl->ground) os << ", over a Lambertian ground of albedo " << mImpl->groundAlbedo;
     return os.str();
 }
 
 openvdb::GridBase::Ptr
 solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
-    openvdb::util::NullInterrupter* interrupt, const SolveControl& control)
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
+    openvdb::FloatGrid::Ptr* ground)
 {
     CloudTransfer transfer(cloud, options, interrupt);
     const bool framed = interrupt && !control.beforeIteration;
@@ -902,10 +1090,12 @@ solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
         const CloudBudget& b = transfer.budget();
         std::ostringstream os;
         os << "albedo " << b.albedo << ", transmittance " << b.transmittance << " (direct "
-           << b.directTransmittance << "), absorptance " << b.absorptance << "; balance "
-           << b.balance();
+           << b.directTransmittance << "), absorptance " << b.absorptance;
+        if (options.groundAlbedo) os << ", reflected by the ground " << b.groundReflected;
+        os << "; balance " << b.balance();
         control.note(os.str());
     }
+    if (ground) *ground = transfer.groundGrid();
     return transfer.grid();
 }
 

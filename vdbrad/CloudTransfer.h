@@ -61,6 +61,11 @@
 // crosses the other axis' faces only. One voxel deep along both horizontal axes is a plane-
 // parallel medium, swept along the vertical alone: the discrete-ordinates slab.
 //
+// Ground (CloudTransferOptions::groundAlbedo, Ground.h): a Lambertian surface under the box, a
+// layer of voxels swept with the medium: light going down lands on the ground cell it meets and
+// is reflected up the next sweep, rho E split over the directions by the cosine law so that the
+// ground reflects exactly what it does not absorb. Its irradiance comes out as its own grid.
+//
 // Anisotropic scattering (PhaseFunction.h): the sweeps accumulate the radiance's spherical-
 // harmonic moments I_lm up to order K instead of J alone, and a voxel's source in direction s is
 // S(s) = alpha omega0' sum_l chi_l' sum_m I_lm Y_lm(s), delta-M scaled; alpha rescales it so that
@@ -148,6 +153,9 @@ struct CloudTransferOptions
     /// degree 2K (HarmonicQuadrature.h), so that the error falls with the direction count;
     /// false keeps the cells' solid angles (BENCHMARKS.md, "Harmonic weights").
     bool harmonicWeights = true;
+    /// A Lambertian ground of this albedo (in [0, 1]) under the box, reflecting the light that
+    /// reaches it back into the cloud (Ground.h); unset: none (light leaving downwards is gone).
+    std::optional<double> groundAlbedo;
 };
 
 /// Where the incident sunlight went, as fractions of the incident power (after the last sweep).
@@ -155,11 +163,21 @@ struct CloudBudget
 {
     double incident = 0.0;       ///< beam power entering the box (units of F0 x voxel face)
     double albedo = 0.0;         ///< leaving upwards
-    double transmittance = 0.0;  ///< leaving downwards, direct beam included
+    /// Leaving downwards, direct beam included: onto the ground where there is one (its
+    /// irradiance, every arrival counted), so with a ground it includes light reflected back
+    /// down by the cloud.
+    double transmittance = 0.0;
     double directTransmittance = 0.0;
-    double absorptance = 0.0;
-    /// albedo + transmittance + absorptance - 1: the energy balance error.
-    double balance() const { return albedo + transmittance + absorptance - 1.0; }
+    double absorptance = 0.0;    ///< absorbed in the medium
+    /// Reflected back up by the ground: its albedo times what reached it (0 without a ground);
+    /// (1 - ground albedo) x what reached it is what the ground absorbed.
+    double groundReflected = 0.0;
+    /// albedo + transmittance - groundReflected + absorptance - 1: the energy balance error
+    /// (the ground reflects what it does not absorb).
+    double balance() const
+    {
+        return albedo + transmittance - groundReflected + absorptance - 1.0;
+    }
 };
 
 class CloudTransfer : public IterativeSolver
@@ -221,6 +239,14 @@ public:
     /// The budget of the last sweep (zero before the first).
     const CloudBudget& budget() const { return mBudget; }
 
+    /// @brief Irradiance of the ground (CloudTransferOptions::groundAlbedo), direct beam
+    /// included, per cell of its layer (GroundLayer order), in units of the beam irradiance's;
+    /// empty without a ground.
+    std::vector<float> groundIrradiance() const;
+    /// @brief The ground's irradiance as a float grid on the cloud's transform, active on the
+    /// layer of voxels one below the box over its footprint (null without a ground).
+    openvdb::FloatGrid::Ptr groundGrid(const std::string& name = "ground_irradiance") const;
+
     /// @brief The `mean_intensity` float grid on the cloud's transform, active on its voxels,
     /// with metadata vdbrad:albedo, vdbrad:transmittance, vdbrad:absorptance, vdbrad:iterations,
     /// vdbrad:residual, vdbrad:directions, vdbrad:seconds.
@@ -243,10 +269,11 @@ private:
 };
 
 /// @brief Solve the transfer in @a cloud and return its `mean_intensity` grid (see grid()).
-/// @a control: checkpoints and reports (SolveControl).
+/// @a control: checkpoints and reports (SolveControl); @a ground, if not null, gets the
+/// ground's irradiance (groundGrid(); null without a ground).
 /// @throw as CloudTransfer's constructor and iterate(); as readCheckpoint(), writeCheckpoint()
 openvdb::GridBase::Ptr solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt = nullptr,
-    const SolveControl& control = SolveControl());
+    const SolveControl& control = SolveControl(), openvdb::FloatGrid::Ptr* ground = nullptr);
 
 } // namespace vdbrad

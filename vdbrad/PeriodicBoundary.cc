@@ -238,9 +238,28 @@ PeriodicBoundary::wrap(size_t d, const std::vector<double>& exits, double share,
             const double p = share * exits[e] * part[k];
             if (p == 0.0) continue;
             const int at = layer + int(whole) + k;
-            const size_t slot = to - size_t(layer) + size_t(at);
-            if (at >= 0 && at < mLayers && enterCount(d, slot) > 0) {
-                into[slot] += p;
+            const size_t base = to - size_t(layer);
+            // No line of the direction may enter the opposite face in that layer (the lines
+            // do not repeat with the period): a neighbouring layer that one enters, the lower
+            // first for light going down; else, as light that drifted past the top or bottom,
+            // it has left.
+            int into_at = -1;
+            if (at >= 0 && at < mLayers) {
+                const double tUp = drift != 0 ? double(drift) : e < size / 2 ? upward : -upward;
+                const int first = tUp < 0.0 ? -1 : 1;
+                for (int r = 0; r <= kNeighbourLayers && into_at < 0; ++r) {
+                    for (int side : {first, -first}) {
+                        const int l = at + side * r;
+                        if (l >= 0 && l < mLayers && enterCount(d, base + size_t(l)) > 0) {
+                            into_at = l;
+                            break;
+                        }
+                        if (r == 0) break;
+                    }
+                }
+            }
+            if (into_at >= 0) {
+                into[base + size_t(into_at)] += p;
                 transit += p;
             } else {
                 const double tUp = drift != 0 ? double(drift) : e < size / 2 ? upward : -upward;

@@ -39,6 +39,9 @@ public:
     /// Wrap-around passes per direction and iteration before the rest of the wrapping light is
     /// carried over to the next iteration.
     static constexpr int kMaxWraps = 64;
+    /// Light re-entering a layer that no line of its direction enters goes to the nearest layer
+    /// within this many that one does (further, it would move light across the box).
+    static constexpr int kNeighbourLayers = 1;
 
     /// @brief The side faces of @a box (index space), @a up the vertical axis, the medium
     /// swept in the plane of the other axes along the @a flat ones (sweptLine()); counts the
@@ -88,9 +91,10 @@ public:
     const FlatAxes& flat() const { return mFlat; }
 
     /// @brief What left the side faces (@a exits, one slice of direction @a d, times @a share)
-    /// enters through the opposite faces: added to @a into; what no line enters, or what
-    /// drifts (@a drift: +1 upper half cell, -1 lower, 0 none; by @a rise layers) past the top
-    /// or bottom, has left the box: added to @a escaped (0 down, 1 up; @a upward: the
+    /// enters through the opposite faces: added to @a into (in a neighbouring layer where no
+    /// line enters its own: kNeighbourLayers); what no line enters, or what drifts (@a drift:
+    /// +1 upper half cell, -1 lower, 0 none; by @a rise layers) past the top or bottom, has
+    /// left the box: added to @a escaped (0 down, 1 up; @a upward: the
     /// direction's up component). Returns the power that wraps.
     double wrap(size_t d, const std::vector<double>& exits, double share, int drift, double rise,
         double upward, std::vector<double>& into, std::array<double, 2>& escaped) const;

@@ -27,13 +27,37 @@ struct Marcher
 {
     const std::vector<float>& depth;
     std::vector<std::atomic<int64_t>>& deposited;
-    openvdb::CoordBBox box;   // the voxels' bounding box (index)
+    openvdb::CoordBBox box;   // the medium's bounding box (index)
     int up;
     bool periodic;
+    const GroundLayer* ground;
+    std::vector<std::atomic<int64_t>>& landed;   // per ground cell
+
+    // What is left of a ray that leaves the medium along d at point q (cell space), on the
+    // ground cell under q + s d where the ray meets the ground's plane (the box's bottom), if
+    // that is inside the footprint (an open box's ray that leaves through a side meets the
+    // plane outside it).
+    void land(Vec3d q, const Vec3d& d, int64_t left) const
+    {
+        if (!ground || left <= 0) return;
+        const double bottom = double(box.min()[up]);
+        q += d * ((bottom - q[up]) / d[up]);
+        Coord ijk;
+        for (int k = 0; k < 3; ++k) {
+            if (k == up) { ijk[k] = ground->layer(); continue; }
+            const double lo = box.min()[k], hi = box.max()[k];
+            // Outside an open box's footprint: missed (a periodic ray is inside but for
+            // rounding, and so is one through an open box's bottom edge).
+            if (!periodic && (q[k] < lo - 1e-9 || q[k] > hi + 1.0 + 1e-9)) return;
+            ijk[k] = int(std::clamp(std::floor(q[k]), lo, hi));
+        }
+        landed[ground->cell(ijk)].fetch_add(left, std::memory_order_relaxed);
+    }
 
     // March the ray o + t d (index space, unit d) from t0 to t1, or, periodic, across the
     // horizontal copies of the box until it leaves through the bottom; deposit what each voxel
-    // takes and return what is left of the ray's power (fixed point).
+    // takes (and, with a ground, what is left where the ray reaches it) and return what is
+    // left of the ray's power (fixed point).
     int64_t march(const Vec3d& o, const Vec3d& d, double t0, double t1,
         VoxelIndex::Accessor& acc) const
     {
@@ -56,6 +80,7 @@ struct Marcher
         Vec3d q = o + Vec3d(0.5);
         if (!periodic) {
             marchVoxels(acc, box, q, d, t0, t1, take);
+            land(q, d, left);
             return left;
         }
         // One copy of the box at a time: where the ray leaves through a side, the origin moves
@@ -71,7 +96,10 @@ struct Marcher
                 if (tk < tExit) { tExit = tk; axis = k; }
             }
             marchVoxels(acc, box, q, d, t, tExit, take);
-            if (axis == up) break;   // out through the bottom: the rest is transmitted
+            if (axis == up) {   // out through the bottom: the rest is transmitted
+                land(q, d, left);
+                break;
+            }
             q[axis] -= (d[axis] > 0.0 ? 1.0 : -1.0) * (hi[axis] - lo[axis]);
             t = tExit;
         }
@@ -84,7 +112,7 @@ struct Marcher
 SolarBeamResult
 traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const Vec3d& toSun, int up, bool periodic, int raysPerVoxel, double irradiance,
-    openvdb::util::NullInterrupter* interrupt)
+    openvdb::util::NullInterrupter* interrupt, const GroundLayer* ground)
 {
     if (up < 0 || up > 2) OPENVDB_THROW(openvdb::ValueError, "up axis must be 0, 1 or 2");
     if (opticalDepth.size() != voxels.size()) {
@@ -96,6 +124,9 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     if (!(irradiance >= 0.0) || !std::isfinite(irradiance)) {
         OPENVDB_THROW(openvdb::ValueError, "irradiance must be finite and >= 0");
     }
+    if (ground && ground->up() != up) {
+        OPENVDB_THROW(openvdb::ValueError, "the ground's vertical axis is not the beam's");
+    }
     const double len = toSun.length();
     if (!(len > 0.0) || !std::isfinite(len) || !(toSun[up] / len > 1e-3)) {
         OPENVDB_THROW(openvdb::ValueError, "the sun must be above the horizon (elevation > 0.06 "
@@ -105,10 +136,12 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const size_t n = voxels.size();
     if (n == 0) return result;
     const Vec3d d = -toSun / len;   // propagation
-    const openvdb::CoordBBox box = voxels.bbox();
+    // The medium's box: above the ground's layer, if the voxels hold it.
+    openvdb::CoordBBox box = voxels.bbox();
+    if (ground && box.min()[up] <= ground->layer()) box.min()[up] = ground->layer() + 1;
     const Vec3d lo = box.min().asVec3d() - Vec3d(0.5), hi = box.max().asVec3d() + Vec3d(0.5);
-    std::vector<std::atomic<int64_t>> deposited(n);
-    const Marcher marcher{opticalDepth, deposited, box, up, periodic};
+    std::vector<std::atomic<int64_t>> deposited(n), landed(ground ? ground->size() : 0);
+    const Marcher marcher{opticalDepth, deposited, box, up, periodic, ground, landed};
     const double spacing = 1.0 / raysPerVoxel;
 
     // The ray grid: on the top face (periodic), or on the plane normal to the beam over the
@@ -190,6 +223,10 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     }
     result.incident = double(enteredRays.load()) * rayPower;
     result.transmitted = double(keptFixed.load()) / kFixed * rayPower;
+    result.ground.resize(landed.size());
+    for (size_t c = 0; c < landed.size(); ++c) {
+        result.ground[c] = double(landed[c].load()) / kFixed * rayPower;
+    }
     return result;
 }
 

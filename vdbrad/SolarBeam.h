@@ -17,6 +17,7 @@
 // stands for an infinite repeating field.
 #pragma once
 
+#include "vdbrad/Ground.h"
 #include "vdbrad/VoxelIndex.h"
 
 #include <openvdb/openvdb.h>
@@ -33,6 +34,8 @@ struct SolarBeamResult
     std::vector<double> deposited;
     /// Beam power entering the box and leaving it unscattered, same units.
     double incident = 0.0, transmitted = 0.0;
+    /// With a ground: per cell of its layer, the part of `transmitted` that reaches it.
+    std::vector<double> ground;
 };
 
 /// @brief Trace the solar beam through a medium.
@@ -44,6 +47,10 @@ struct SolarBeamResult
 /// @param periodic     wrap the two horizontal axes over the voxels' bounding box
 /// @param raysPerVoxel rays per voxel along each axis of the beam's cross-section, >= 1
 /// @param irradiance   F0, beam irradiance on a plane normal to it, >= 0
+/// @param ground       if not null, a ground under the medium (Ground.h): where each ray meets
+///                     its plane, wrapped into the period if periodic, or nowhere if outside its
+///                     footprint; @a voxels may hold the ground's layer (CloudTransfer sweeps
+///                     it), which is not part of the medium's box
 /// @throw openvdb::ValueError for invalid arguments; vdbrad::Cancelled if @a interrupt asks
 /// @brief The unit direction towards the sun in @a transform's index space, from its zenith
 /// angle (from the @a up axis) and azimuth (from the first horizontal axis towards the second:
@@ -54,6 +61,7 @@ openvdb::Vec3d sunDirection(double zenith, double azimuth, int up,
 
 SolarBeamResult traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const openvdb::Vec3d& toSun, int up, bool periodic, int raysPerVoxel = 2,
-    double irradiance = 1.0, openvdb::util::NullInterrupter* interrupt = nullptr);
+    double irradiance = 1.0, openvdb::util::NullInterrupter* interrupt = nullptr,
+    const GroundLayer* ground = nullptr);
 
 } // namespace vdbrad
