@@ -772,3 +772,45 @@ TEST_F(RenderTest, FinalGatherShowsTheExactDirectLightAtEachPixelsPoint)
     EXPECT_GT(checked, 300u);
     EXPECT_LT(worst, 1e-4);
 }
+
+// The cloud solver's ground under a cloud (`ground_irradiance`, CloudTransfer::groundGrid) is
+// drawn, seen from above, as its radiosity rho E attenuated by the cloud in front: looking
+// straight down through a uniform cloud of optical depth tau onto a ground of irradiance E, the
+// pixel is J (1 - e^-tau) + rho E e^-tau (1e-5). Seen from below, the ground is not drawn.
+TEST_F(RenderTest, GroundUnderACloudShowsItsRadiosity)
+{
+    const double vs = 1.0 / 15.0;
+    auto xform = openvdb::math::Transform::createLinearTransform(vs);
+    const double c = 7.0 * vs;
+    const float sigma = 0.7f, J = 2.f, E = 3.f, rho = 0.4f;
+    auto density = openvdb::FloatGrid::create(0.f);
+    density->setName("density");
+    density->setGridClass(openvdb::GRID_FOG_VOLUME);
+    density->setTransform(xform);
+    density->denseFill(openvdb::CoordBBox(Coord(0), Coord(14)), sigma, true);
+    auto source = density->deepCopy();
+    source->setName("mean_intensity");
+    source->denseFill(openvdb::CoordBBox(Coord(0), Coord(14)), J, true);
+    auto ground = openvdb::FloatGrid::create(0.f);
+    ground->setName("ground_irradiance");
+    ground->setTransform(xform);
+    ground->denseFill(openvdb::CoordBBox(Coord(0, -1, 0), Coord(14, -1, 14)), E, true);
+    ground->insertMeta("vdbrad:ground_albedo", openvdb::FloatMetadata(rho));
+    ground->insertMeta("vdbrad:up", openvdb::Int32Metadata(1));
+    for (const bool fromAbove : {true, false}) {
+        RenderOptions o;
+        o.width = o.height = 33;
+        o.background = Vec3f(0.25f);
+        Camera cam;
+        cam.eye = Vec3d(c, fromAbove ? 3.0 : -3.0, c);
+        cam.target = Vec3d(c, c, c);
+        cam.up = Vec3d(0, 0, 1);
+        o.camera = cam;
+        const Image image = renderImage({density, source, ground}, o);
+        EXPECT_TRUE(image.warnings.empty());
+        const double T = std::exp(-double(sigma));
+        const double behind = fromAbove ? rho * E : 0.25;
+        EXPECT_NEAR(image.at(16, 16)[0], J * -std::expm1(-double(sigma)) + behind * T, 1e-5)
+            << fromAbove;
+    }
+}

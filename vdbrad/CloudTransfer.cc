@@ -1023,6 +1023,7 @@ CloudTransfer::groundGrid(const std::string& name) const
     openvdb::FloatGrid::Accessor acc = g->getAccessor();
     for (size_t c = 0; c < E.size(); ++c) acc.setValueOn(layer.coord(c), E[c]);
     g->insertMeta("vdbrad:ground_albedo", openvdb::FloatMetadata(float(mImpl->groundAlbedo)));
+    g->insertMeta("vdbrad:up", openvdb::Int32Metadata(mOptions.up));
     g->insertMeta(meta::kIterations, openvdb::Int32Metadata(iterationCount()));
     g->insertMeta(meta::kVersion, openvdb::StringMetadata(VDBRAD_VERSION_STRING));
     return g;

@@ -197,6 +197,7 @@ struct Renderer::Tracer
         if (r.mHasCloud) {
             mCloud.emplace(r.mCloud.voxels().tree());
         }
+        if (r.mGround) mGround.emplace(r.mGround->getConstAccessor());
         if (r.mGather) mDirect.emplace(r.mGather->sampler);
     }
 
@@ -364,13 +365,36 @@ struct Renderer::Tracer
             });
     }
 
+    // The ground under a cloud (the cloud solver's `ground_irradiance`), seen from above on the
+    // top face of its layer of voxels: its radiosity rho E.
+    bool hitGround(const Vec3d& eye, const Vec3d& dir, double t0, double t1, double& tHit,
+        Vec3f& value)
+    {
+        const int up = mR.mGroundUp;
+        const IndexRay ir = toIndex(mR.mGround->transform(), eye, dir);
+        if (!(ir.dir[up] < 0.0)) return false;
+        const double t = (mR.mGroundLayer + 0.5 - ir.origin[up]) / ir.dir[up];
+        if (!(t > t0 && t < t1)) return false;
+        const Vec3d p = ir.origin + ir.dir * t;
+        Coord c;
+        for (int k = 0; k < 3; ++k) {
+            c[k] = k == up ? mR.mGroundLayer : int32_t(std::floor(p[k] + 0.5));
+        }
+        float E = 0.f;
+        if (!mGround->probeValue(c, E)) return false;
+        tHit = t;
+        value = Vec3f(mR.mGroundAlbedo * E);
+        return true;
+    }
+
     Vec3f radiance(const RayT& ray, float& coverage)
     {
         const Vec3d eye = ray.eye(), dir = ray.dir();
         const double t0 = ray.t0(), t1 = ray.t1();
         double tHit = kInf;
         Vec3f surface(0.f);
-        const bool hit = mR.mHasSurface && hitSurface(eye, dir, t0, t1, tHit, surface);
+        const bool hit = (mR.mHasSurface && hitSurface(eye, dir, t0, t1, tHit, surface))
+            || (mR.mGround && hitGround(eye, dir, t0, t1, tHit, surface));
         Vec3d L(0.0);
         double T = 1.0;
         if (mR.mHasCloud) throughCloud(eye, dir, t0, hit ? tHit : t1, L, T);
@@ -382,6 +406,7 @@ struct Renderer::Tracer
 
     const Renderer& mR;
     std::optional<Accessor> mSurface, mCloud;
+    std::optional<openvdb::FloatGrid::ConstAccessor> mGround;
     std::optional<MeshTracer::Accessor> mMesh;
     std::optional<DirectLightSampler::Workspace> mDirect;   // the final gather's
     std::optional<LevelSetIntersector> mLevelSet;
@@ -509,7 +534,27 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
         mHasCloud = true;
         mCloudEmits = !mSource.isZero();
         mCloudBox = mCloud.voxels().bbox();
-        const openvdb::BBoxd b = worldBoundsOf(mCloudBox, mCloud.transform());
+        openvdb::BBoxd b = worldBoundsOf(mCloudBox, mCloud.transform());
+        // A ground under the cloud (CloudTransfer::groundGrid): a float grid one voxel thick,
+        // its albedo and vertical axis in its metadata.
+        const openvdb::GridBase::ConstPtr ground = findGrid(grids, "ground_irradiance");
+        if (ground && ground->isType<openvdb::FloatGrid>() && ground->activeVoxelCount() > 0) {
+            const auto albedo = ground->getMetadata<openvdb::FloatMetadata>("vdbrad:ground_albedo");
+            const auto up = ground->getMetadata<openvdb::Int32Metadata>("vdbrad:up");
+            const openvdb::CoordBBox box = ground->evalActiveVoxelBoundingBox();
+            if (albedo && up && up->value() >= 0 && up->value() <= 2
+                && box.dim()[up->value()] == 1
+                && ground->transform() == findGrid(grids, options.cloud.density)->transform()) {
+                mGround = openvdb::gridConstPtrCast<openvdb::FloatGrid>(ground);
+                mGroundAlbedo = albedo->value();
+                mGroundUp = up->value();
+                mGroundLayer = box.min()[mGroundUp];
+                b.expand(worldBoundsOf(box, mCloud.transform()));
+            } else {
+                mWarnings.push_back("'ground_irradiance' not shown: not a cloud solver's ground "
+                    "on the cloud's transform");
+            }
+        }
         if (mHasSurface) mWorldBounds.expand(b);
         else mWorldBounds = b;
     }

@@ -19,7 +19,10 @@
 //     dL/ds = -sigma_t (L - S) integrates exactly per voxel chord of length l:
 //         L += T (1 - exp(-sigma_t l)) S,   T *= exp(-sigma_t l),
 //     with 1 - exp(-x) evaluated as -expm1(-x) so thin clouds keep their precision. A surface
-//     behind or inside the cloud is seen attenuated by T, the background likewise.
+//     behind or inside the cloud is seen attenuated by T, the background likewise;
+//   - the ground under a cloud, when the file has the cloud solver's `ground_irradiance`
+//     (CloudTransfer::groundGrid): seen from above on the top face of its layer, radiosity
+//     rho E.
 //
 // Units: a pixel holds the radiosity B of what it sees (not the radiance B / pi), in the solve's
 // units: an emitter of emission 1 shows as 1.0. Pixels are linear (no tone mapping; ImageIO.h).
@@ -175,6 +178,10 @@ private:
     Cloud mCloud;
     Attribute mSource;                       // omega0 J per cloud voxel; Uniform 0: absorb only
     bool mCloudEmits = false;                // mSource is not zero everywhere
+    // The ground under the cloud, if the file has one (its irradiance E; drawn as rho E).
+    openvdb::FloatGrid::ConstPtr mGround;
+    float mGroundAlbedo = 0.f;
+    int mGroundUp = 1, mGroundLayer = 0;
     openvdb::CoordBBox mSurfaceBox, mCloudBox;   // index bounds of the voxel sets
     openvdb::BBoxd mWorldBounds;
     std::vector<std::string> mWarnings;
