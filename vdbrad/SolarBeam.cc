@@ -146,18 +146,33 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
 
     // The ray grid: on the top face (periodic), or on the plane normal to the beam over the
     // box's shadow (open). Each ray stands for a patch of the beam's cross-section of area
-    // `area` (voxel faces).
+    // `area` (voxel faces). An open box over a ground launches its rays from the plane of the
+    // top face too, over the footprint and upstream of it as far as rays still reach the sunlit
+    // sides: the rays then meet the ground on a lattice as regular as the top face's, the same
+    // number per cell (from the plane normal to the beam their spacing on the ground is
+    // stretched by 1 / cos(zenith): stripes in the ground's irradiance).
     Vec3d origin, e1, e2;
     int rows = 0, cols = 0;
     double area = 0.0;
-    if (periodic) {
+    if (periodic || ground) {
         const int h1 = (up + 1) % 3, h2 = (up + 2) % 3;
         e1 = Vec3d(0.0); e1[h1] = spacing;
         e2 = Vec3d(0.0); e2[h2] = spacing;
-        cols = int(std::lround((hi[h1] - lo[h1]) * raysPerVoxel));
-        rows = int(std::lround((hi[h2] - lo[h2]) * raysPerVoxel));
         origin = lo;
         origin[up] = hi[up];
+        Vec3d end = hi;
+        if (!periodic) {
+            // A ray through the bottom of a sunlit side started this far upstream.
+            const double reach = (hi[up] - lo[up]) / std::abs(d[up]);
+            for (const int k : {h1, h2}) {
+                const double shift = -d[k] * reach;
+                const double steps = std::ceil(std::abs(shift) / spacing - 1e-9);
+                if (shift < 0.0) origin[k] -= steps * spacing;
+                else end[k] += steps * spacing;
+            }
+        }
+        cols = int(std::lround((end[h1] - origin[h1]) * raysPerVoxel));
+        rows = int(std::lround((end[h2] - origin[h2]) * raysPerVoxel));
         origin += 0.5 * (e1 + e2);
         area = spacing * spacing * std::abs(d[up]);
     } else {

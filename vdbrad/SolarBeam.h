@@ -14,7 +14,10 @@
 // Open boundaries: the bundle covers the projection of the whole medium box (top and sunlit
 // sides). Periodic boundaries (the two horizontal axes): rays start on the box's top face, over
 // one period, and wrap around horizontally until they leave through the bottom, so a finite box
-// stands for an infinite repeating field.
+// stands for an infinite repeating field. Over a ground (Ground.h), what is left of each ray
+// lands on the ground cell where it meets the ground's plane; an open box's rays then start on
+// the plane of its top face (over the footprint and upstream of it), so that they meet the
+// ground equally spaced.
 #pragma once
 
 #include "vdbrad/Ground.h"
