@@ -4,6 +4,8 @@
 //  - slabMonteCarlo / boxMonteCarlo: analogue photon Monte Carlo in an infinite plane-parallel slab
 //    (periodic horizontal boundaries are the same thing) and in an axis-aligned box with open
 //    boundaries, lit by a parallel solar beam.
+//  - columnsMonteCarlo / voxelMediumMonteCarlo: delta tracking through periodic columns and
+//    through a voxel medium (a 3D cloud, open or periodic), for the heterogeneous benchmarks.
 //  - deltaEddingtonAlbedo / deltaEddingtonTransmittance: the delta-Eddington two-stream
 //    approximation for a slab over a black surface (Joseph, Wiscombe & Weinman 1976).
 //  - addingDoublingSlab: a deterministic, numerically exact (to quadrature and start-layer error)
@@ -20,7 +22,7 @@
 // with d.y > 0, transmittance those leaving with d.y <= 0 (d.y == 0 has probability zero), and the
 // direct transmittance is the part of the transmittance that never scattered.
 //
-// Ground: the slab and column problems may sit on a Lambertian ground of albedo rho
+// Ground: the slab, column and voxel problems may sit on a Lambertian ground of albedo rho
 // (groundAlbedo; 0, the default, is black and reproduces the results without a ground bit for bit).
 // Then transmittance is the downward flux reaching the ground per unit entering power, counting
 // every arrival (a photon may arrive many times, so it can exceed the black-ground value and 1),
@@ -62,7 +64,8 @@ struct SlabResult
 {
     double reflectance = 0, transmittance = 0, absorptance = 0, directTransmittance = 0;
     double reflectanceStderr = 0, transmittanceStderr = 0, absorptanceStderr = 0;
-    /// Absorbed by the ground under a slab (see the file header); 0 where there is none (box).
+    /// Absorbed by the ground under a slab or a voxel medium (see the file header); 0 where there
+    /// is none (box).
     double groundAbsorptance = 0, groundAbsorptanceStderr = 0;
 };
 
@@ -218,8 +221,9 @@ scatter(const Vec3& d, double mu, double u)
 
 /// Whole-photon outcomes (reflected, transmitted, absorbed: exactly one per photon; transmitted
 /// means absorbed by the ground when there is one) and arrivals at the ground y = 0 (box: the
-/// bottom face), which a photon can make several times over a reflecting ground. arrivalsSq is
-/// the sum over photons of (arrivals per photon)^2, for the sample variance.
+/// bottom face; an open voxel medium adds its downward exits through the sides, so that arrivals
+/// is the transmittance count), which a photon can make several times over a reflecting ground.
+/// arrivalsSq is the sum over photons of (arrivals per photon)^2, for the sample variance.
 struct Tally
 {
     uint64_t reflected = 0, transmitted = 0, direct = 0, absorbed = 0;
@@ -440,6 +444,50 @@ boxProjectedFaceAreas(const BoxProblem& p)
         az * std::max(0.0, -s[2]), az * std::max(0.0, s[2])};
 }
 
+namespace detail {
+
+/// Entry points uniform over a box's projection onto the plane normal to the beam: a lit face
+/// with probability proportional to its projected area, then a point uniform on it (three
+/// draws, in this order: the references' seeded results depend on it).
+struct BoxEntry
+{
+    std::array<double, 6> area{}, cumulative{};
+    double total = 0.0;
+    int lastLit = 0;
+    double hi[3];
+
+    BoxEntry(const BoxProblem& p)
+        : area(boxProjectedFaceAreas(p)), hi{p.sizeX, p.sizeY, p.sizeZ}
+    {
+        for (int f = 0; f < 6; ++f) {
+            cumulative[f] = (total += area[f]);
+            if (area[f] > 0.0) lastLit = f;
+        }
+    }
+
+    Vec3 sample(ReferenceRng& rng) const
+    {
+        // The first lit face whose cumulative area exceeds the pick; the last lit face if
+        // rounding pushes the pick up to the total.
+        const double pick = rng.open01() * total;
+        int f = lastLit;
+        for (int k = 0; k < 6; ++k) {
+            if (area[k] > 0.0 && pick < cumulative[k]) {
+                f = k;
+                break;
+            }
+        }
+        const int axis = f / 2;
+        double q[3];
+        q[axis] = (f % 2) ? hi[axis] : 0.0;
+        q[(axis + 1) % 3] = rng.open01() * hi[(axis + 1) % 3];
+        q[(axis + 2) % 3] = rng.open01() * hi[(axis + 2) % 3];
+        return {q[0], q[1], q[2]};
+    }
+};
+
+} // namespace detail
+
 /// @brief Photon Monte Carlo for a homogeneous box with open boundaries, lit by a parallel beam.
 /// @details Entry points are uniform over the box's projection onto the plane normal to the beam:
 /// a lit face is chosen with probability proportional to its projected area, then a point uniform
@@ -465,15 +513,7 @@ boxMonteCarlo(const BoxProblem& p, const MonteCarloRun& run = MonteCarloRun())
     if (!(p.F0 > 0.0 && std::isfinite(p.F0))) {
         throw std::invalid_argument("F0 must be finite and > 0");
     }
-    const std::array<double, 6> area = boxProjectedFaceAreas(p);
-    std::array<double, 6> cumulative{};
-    double total = 0;
-    int lastLit = 0;
-    for (int f = 0; f < 6; ++f) {
-        cumulative[f] = (total += area[f]);
-        if (area[f] > 0.0) lastLit = f;
-    }
-
+    const detail::BoxEntry entry(p);
     const double hi[3] = {p.sizeX, p.sizeY, p.sizeZ};
     auto exit = [&hi](const detail::Vec3& pos, const detail::Vec3& dir, int& face) {
         // Distance to the nearest face ahead, from inside (slab method, exit side only).
@@ -492,26 +532,11 @@ boxMonteCarlo(const BoxProblem& p, const MonteCarloRun& run = MonteCarloRun())
     const std::array<double, 3> s = sunDirection(p.theta0, p.phi0);
     const detail::Vec3 dir0{-s[0], -s[1], -s[2]};
     const detail::Tally tally = detail::runChunks(run, [&](ReferenceRng& rng, detail::Tally& t) {
-        // The first lit face whose cumulative area exceeds the pick; the last lit face if
-        // rounding pushes the pick up to the total.
-        const double pick = rng.open01() * total;
-        int f = lastLit;
-        for (int k = 0; k < 6; ++k) {
-            if (area[k] > 0.0 && pick < cumulative[k]) {
-                f = k;
-                break;
-            }
-        }
-        const int axis = f / 2;
-        double q[3];
-        q[axis] = (f % 2) ? hi[axis] : 0.0;
-        q[(axis + 1) % 3] = rng.open01() * hi[(axis + 1) % 3];
-        q[(axis + 2) % 3] = rng.open01() * hi[(axis + 2) % 3];
-        detail::tracePhoton({q[0], q[1], q[2]}, dir0, p.sigma, p.omega0, p.g, exit, rng, t);
+        detail::tracePhoton(entry.sample(rng), dir0, p.sigma, p.omega0, p.g, exit, rng, t);
     });
     BoxResult r;
     detail::fillFractions(tally, run.photons, r);
-    r.incidentPower = p.F0 * total;
+    r.incidentPower = p.F0 * entry.total;
     for (int f = 0; f < 6; ++f) r.faceFraction[f] = double(tally.face[f]) / double(run.photons);
     return r;
 }
@@ -604,6 +629,167 @@ columnsMonteCarlo(const ColumnsProblem& p, const MonteCarloRun& run = MonteCarlo
     });
     SlabResult r;
     detail::fillFractions(tally, run.photons, r, true);
+    return r;
+}
+
+/// A medium of voxels: extinction per world unit on an nx x ny x nz lattice of cubes of side h
+/// (world box [0, nx h) x [0, ny h) x [0, nz h)), cell (i, j, k) at index i + nx (j + ny k); zero
+/// where there is no medium. Albedo and phase uniform.
+struct VoxelMediumProblem
+{
+    int nx = 1, ny = 1, nz = 1;  ///< cells per axis, >= 1
+    double h = 1;                ///< cell side, world units, > 0
+    std::vector<double> sigma;   ///< nx*ny*nz extinction coefficients per world unit, >= 0, finite
+    double omega0 = 1, g = 0;
+    double theta0 = 0, phi0 = 0;  ///< sun, degrees (azimuth from +x towards +z)
+    bool periodic = false;        ///< wrap x and z (period nx h, nz h)
+    /// Lambertian ground at y = 0, in [0, 1]; 0 is black. Open: under the box's footprint only.
+    double groundAlbedo = 0;
+};
+
+/// @brief Photon Monte Carlo for a voxel medium (VoxelMediumProblem), e.g. a 3D cloud.
+/// @details Open (p.periodic false): photons enter uniformly over the box's projection onto the
+/// plane normal to the beam, as in boxMonteCarlo, and escape wherever they leave the box;
+/// incidentPower is that projected area (F0 = 1) and faceFraction says where the power left.
+/// Periodic: photons enter uniformly over the top face, x and z wrap, and they leave through
+/// the top or the bottom only; incidentPower = cos(theta0) nx h nz h. Free paths by delta
+/// tracking (Woodcock), as in columnsMonteCarlo: steps at sigma_max = max sigma, a collision real
+/// with probability sigma(cell) / sigma_max, the cell floor(pos / h) clamped to the lattice.
+/// This samples the exact free path through piecewise-constant voxels.
+///
+/// The ground: a photon leaving through the bottom face y = 0 lands on it (open: the bottom face
+/// is the footprint, so every such photon is under the box) and is reflected into a
+/// cosine-weighted upward direction with probability p.groundAlbedo, else absorbed there; 0
+/// draws nothing extra. As for the slab, transmittance counts every downward crossing
+/// (arrivals at the ground, and open: downward exits through the sides) per entering photon,
+/// groundAbsorptance = faceFraction[2] is what the ground absorbs (all that reaches it when it is
+/// black), directTransmittance the unscattered first crossings. So R + A + groundAbsorptance = 1
+/// when periodic, and A + sum(faceFraction) = 1 always, in counts; with groundAlbedo = 0,
+/// R + T + A = 1 too.
+/// @throw std::invalid_argument for parameters outside their ranges.
+inline BoxResult
+voxelMediumMonteCarlo(const VoxelMediumProblem& p, const MonteCarloRun& run = MonteCarloRun())
+{
+    detail::checkMedium(p.omega0, p.g);
+    detail::checkRun(run);
+    detail::checkGroundAlbedo(p.groundAlbedo);
+    if (!(p.nx >= 1 && p.ny >= 1 && p.nz >= 1)) {
+        throw std::invalid_argument("a voxel medium needs at least one cell along each axis");
+    }
+    const double X = p.nx * p.h, Y = p.ny * p.h, Z = p.nz * p.h;
+    if (!(p.h > 0.0 && std::isfinite(X * Y * Z))) {
+        throw std::invalid_argument("voxel size h must be > 0 and the box finite");
+    }
+    const size_t cells = size_t(p.nx) * size_t(p.ny) * size_t(p.nz);
+    if (p.sigma.size() != cells) {
+        throw std::invalid_argument("sigma must have nx*ny*nz = " + std::to_string(cells)
+            + " values, got " + std::to_string(p.sigma.size()));
+    }
+    double sigmaMax = 0.0;
+    for (double s : p.sigma) {
+        if (!(s >= 0.0 && std::isfinite(s))) {
+            throw std::invalid_argument("sigma must be finite and >= 0, got " + std::to_string(s));
+        }
+        sigmaMax = std::max(sigmaMax, s);
+    }
+    if (!(p.theta0 >= 0.0 && p.theta0 < 90.0) || !std::isfinite(p.phi0)) {
+        throw std::invalid_argument("theta0 must be in [0,90) degrees, got "
+            + std::to_string(p.theta0));
+    }
+
+    // Open entry: boxMonteCarlo's, on the same box (so incidentPower is the same bits).
+    BoxProblem box;
+    box.sizeX = X, box.sizeY = Y, box.sizeZ = Z, box.theta0 = p.theta0, box.phi0 = p.phi0;
+    const detail::BoxEntry entry(box);
+    const double hi[3] = {X, Y, Z};
+    const bool periodic = p.periodic;
+    auto exit = [&hi, periodic](const detail::Vec3& pos, const detail::Vec3& dir, int& face) {
+        // Distance to the nearest face ahead, from inside; periodic: the top and bottom only.
+        const double q[3] = {pos.x, pos.y, pos.z}, d[3] = {dir.x, dir.y, dir.z};
+        double best = std::numeric_limits<double>::infinity();
+        face = d[1] > 0.0 ? 3 : 2;
+        for (int a = periodic ? 1 : 0; a < (periodic ? 2 : 3); ++a) {
+            if (d[a] == 0.0) continue;
+            const double t = d[a] > 0.0 ? (hi[a] - q[a]) / d[a] : -q[a] / d[a];
+            if (t < best) {
+                best = t;
+                face = 2 * a + (d[a] > 0.0 ? 1 : 0);
+            }
+        }
+        return std::max(0.0, best);  // rounding may put pos a hair outside
+    };
+    auto wrap = [X, Z](detail::Vec3& pos) {
+        pos.x -= X * std::floor(pos.x / X);
+        pos.z -= Z * std::floor(pos.z / Z);
+    };
+    auto cellIndex = [&p](double v, int n) {
+        const double c = std::floor(v / p.h);  // clamped: rounding may leave pos on the far side
+        return c <= 0.0 ? size_t(0) : c >= double(n - 1) ? size_t(n - 1) : size_t(c);
+    };
+    auto sigmaAt = [&](const detail::Vec3& pos) {
+        return p.sigma[cellIndex(pos.x, p.nx)
+            + size_t(p.nx) * (cellIndex(pos.y, p.ny) + size_t(p.ny) * cellIndex(pos.z, p.nz))];
+    };
+
+    const std::array<double, 3> s = sunDirection(p.theta0, p.phi0);
+    const detail::Vec3 dir0{-s[0], -s[1], -s[2]};
+    const detail::Tally tally = detail::runChunks(run, [&](ReferenceRng& rng, detail::Tally& t) {
+        detail::Vec3 pos;
+        if (periodic) {
+            const double x = rng.open01() * X;
+            pos = {x, Y, rng.open01() * Z};
+        } else {
+            pos = entry.sample(rng);
+        }
+        detail::Vec3 dir = dir0;
+        bool scattered = false;  // by a real collision or the ground
+        uint64_t arrivals = 0;
+        for (;;) {
+            int face = -1;
+            const double toExit = exit(pos, dir, face);
+            // sigma_max = 0 gives an infinite step: the photon leaves.
+            const double step = -std::log(rng.open01()) / sigmaMax;
+            if (step >= toExit) {
+                if (dir.y > 0.0) {
+                    ++t.reflected;
+                    ++t.face[face];
+                    return;
+                }
+                if (!scattered) ++t.direct;
+                detail::countArrival(++arrivals, t);
+                if (face == 2 && p.groundAlbedo > 0.0 && rng.open01() < p.groundAlbedo) {
+                    pos = pos + toExit * dir;
+                    pos.y = 0.0;
+                    if (periodic) wrap(pos);
+                    dir = detail::lambertianUp(rng);
+                    scattered = true;
+                    continue;
+                }
+                ++t.transmitted;
+                ++t.face[face];
+                return;
+            }
+            pos = pos + step * dir;
+            if (periodic) wrap(pos);
+            if (!(rng.open01() * sigmaMax < sigmaAt(pos))) continue;  // a null collision
+            if (!(rng.open01() < p.omega0)) {
+                ++t.absorbed;
+                return;
+            }
+            scattered = true;
+            dir = detail::scatter(dir, sampleHenyeyGreenstein(p.g, rng.open01()), rng.open01());
+        }
+    });
+    BoxResult r;
+    // Transmittance counts crossings (a count per photon over a reflecting ground).
+    detail::fillFractions(tally, run.photons, r, true);
+    const double n = double(run.photons);
+    for (int f = 0; f < 6; ++f) r.faceFraction[f] = double(tally.face[f]) / n;
+    // Open, the sides' downward exits are transmitted but not absorbed by the ground.
+    r.groundAbsorptance = r.faceFraction[2];
+    r.groundAbsorptanceStderr =
+        std::sqrt(std::max(0.0, r.groundAbsorptance * (1.0 - r.groundAbsorptance)) / n);
+    r.incidentPower = periodic ? s[1] * X * Z : entry.total;
     return r;
 }
 
