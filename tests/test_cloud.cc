@@ -1032,3 +1032,30 @@ TEST_F(CloudTest, StepCloudOverAGroundAgreesWithMonteCarlo)
     for (float e : E) mean += double(e) / double(E.size());
     EXPECT_NEAR(mean, 0.5 * b.transmittance, 5e-4 * mean);
 }
+
+// A checkpoint of a solve over a ground holds the ground's light and budget: restored, the
+// budget is the saved one and the next sweeps give the uninterrupted run's bits.
+TEST_F(CloudTest, StateOverAGroundRestoresTheSameSolve)
+{
+    const Cloud cloud = slab(4, 6, 3, 3.0, 0.95f);
+    CloudTransferOptions o;
+    o.periodic = true;
+    o.groundAlbedo = 0.4;
+    o.directions = 60;
+    o.accelerate = Acceleration::Anderson;
+    CloudTransfer full(cloud, o);
+    for (int i = 0; i < 4; ++i) full.iterate();
+    SolverState state;
+    full.saveState(state);
+    const CloudBudget saved = full.budget();
+    for (int i = 0; i < 3; ++i) full.iterate();
+    CloudTransfer resumed(cloud, o);
+    resumed.restoreState(state);
+    EXPECT_GT(saved.groundReflected, 0.0);
+    EXPECT_EQ(resumed.budget().groundReflected, saved.groundReflected);
+    EXPECT_EQ(resumed.budget().balance(), saved.balance());
+    for (int i = 0; i < 3; ++i) resumed.iterate();
+    EXPECT_EQ(resumed.budget().groundReflected, full.budget().groundReflected);
+    EXPECT_EQ(resumed.groundIrradiance(), full.groundIrradiance());
+    EXPECT_EQ(resumed.meanIntensity(), full.meanIntensity());
+}

@@ -946,7 +946,10 @@ CloudTransfer::saveState(SolverState& state) const
     state.put("diffuseJ", impl.diffuseJ);
     state.put("moments", impl.moments);
     state.put("leftFace", impl.leftFace);
-    if (impl.ground) state.put("groundDiffuse", impl.groundDiffuse);
+    if (impl.ground) {
+        state.put("groundDiffuse", impl.groundDiffuse);
+        state.put("groundReflected", &mBudget.groundReflected, 1);
+    }
     if (impl.mixer) impl.mixer->save(state, "anderson.");
 }
 
@@ -961,6 +964,7 @@ CloudTransfer::restoreState(const SolverState& state)
     impl.leftFace = state.get<double>("leftFace", impl.leftFace.size());
     if (impl.ground) {
         impl.groundDiffuse = state.get<double>("groundDiffuse", impl.groundDiffuse.size());
+        mBudget.groundReflected = state.get<double>("groundReflected", 1)[0];
     }
     if (impl.mixer) impl.mixer->restore(state, "anderson.");
     mBudget.incident = budget[0];
