@@ -182,6 +182,10 @@ struct CloudTransfer::Impl
         std::vector<float> R;        // n x width: sum over l >= 1 of c_lm Y_lm(column)
         std::vector<float> Lbar;     // n x width: omega0 x the step's mean radiance
         std::vector<float> Yt;       // (M - 1) x width: the harmonics l >= 1, transposed
+        // Per voxel, 1 - e^-tau of the direction swept: from the first pass's forward sense,
+        // for its backward sense and the wrap passes (the exponential was a third of an
+        // isotropic sweep).
+        std::vector<double> absorbed;
     };
     mutable SweepSchedule::PerThread<Batch> batches;
     /// Directions per batch: as many as keep a thread's two matrices within kBatchBytes.
@@ -546,6 +550,11 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
     // @a after (the next one's source, null at a gap or the line's end): its moments, and the
     // radiance that leaves it. Compiled apart for a constant source (Lin false), which is then
     // finished in place, at the constant scheme's cost.
+    // The first pass's forward sense computes each voxel's exponential (every voxel is finished
+    // once per sense and pass); the rest read it.
+    std::vector<double>& absorbed = batch.absorbed;
+    if (absorbed.size() < n) absorbed.resize(n);
+    bool computing = true;
     auto finish = [&](auto lin, Ray& ray, float s, float r, float b, size_t sense,
                       const float* after) {
         const uint32_t x = ray.last;
@@ -554,8 +563,13 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
         if constexpr (decltype(lin)::value) {
             slope = sourceSlope(s, ray.hasBefore ? &ray.before : nullptr, after);
         }
-        if (slope != 0.f) gain = linearSourceGain(tau, perTau, absorb, mean);
-        else stepFactors(tau, absorb, mean);
+        double a = 0.0;
+        if (tau > kExponentialDepth) {
+            if (computing) absorbed[x] = absorbedFraction(tau);
+            a = absorbed[x];
+        }
+        if (slope != 0.f) gain = linearSourceGain(tau, a, perTau, absorb, mean);
+        else stepFactors(tau, a, absorb, mean);
         const float* y = yAcc[sense];
         const float L = ray.radiance;
         // Mean over the step: s + (L - s) f - slope h / tau. I_00 gathers only
@@ -667,6 +681,7 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                         escaped[dir[up] > 0.0 ? 1 : 0] += power;
                     }
                 }
+                if (forward) computing = false;
             });
     };
     if (linear) pass(true, std::true_type());
@@ -891,7 +906,7 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     perVoxel += 4 * (4 * M + 4);                    // the sources in each pattern's order
     perVoxel += size_t(Impl::kGroups) * 4 * M;      // gathered moments per group
     perVoxel += 8 * M;                              // their double sum
-    perVoxel += t * (4 + 16);                       // per thread: slots, line state
+    perVoxel += t * (4 + 16 + 8);                   // per thread: slots, line state, 1 - e^-tau
     if (M > 1) perVoxel += t * 2 * 2 * 4 * Impl::batchSize(n, M);   // a batch's two matrices
     if (anderson) {
         perVoxel += 8 * M + AndersonMixer::bytes(M, options.andersonDepth);   // + x, G(x)

@@ -21,15 +21,25 @@
 
 namespace vdbrad {
 
-// Across a step of optical depth tau: the absorbed fraction 1 - e^-tau and the mean factor
-// (1 - e^-tau) / tau, with one exponential, and without cancellation for thin voxels. The
-// radiance is updated as L += (S - L) (1 - e^-tau) rather than S + (L - S) e^-tau: at tau = 1e-8
-// e^-tau rounds to 1 in float and the latter would lose all the light a thin voxel adds.
-inline void
-stepFactors(float tau, float& absorb, float& mean)
+// 1 - e^-tau, where stepFactors() and linearSourceGain() take it from the exponential (tau above
+// kExponentialDepth; below, series): a sweep computes it once per voxel and direction and hands
+// it to both senses' steps.
+constexpr float kExponentialDepth = 1e-3f;
+inline double
+absorbedFraction(float tau)
 {
-    if (tau > 1e-3f) {
-        const double a = -std::expm1(-double(tau));
+    return -std::expm1(-double(tau));
+}
+
+// Across a step of optical depth tau: the absorbed fraction 1 - e^-tau and the mean factor
+// (1 - e^-tau) / tau, with one exponential (@a a = absorbedFraction(tau), read only above
+// kExponentialDepth), and without cancellation for thin voxels. The radiance is updated as
+// L += (S - L) (1 - e^-tau) rather than S + (L - S) e^-tau: at tau = 1e-8 e^-tau rounds to 1 in
+// float and the latter would lose all the light a thin voxel adds.
+inline void
+stepFactors(float tau, double a, float& absorb, float& mean)
+{
+    if (tau > kExponentialDepth) {
         absorb = float(a);
         mean = float(a / double(tau));
     } else {
@@ -39,27 +49,41 @@ stepFactors(float tau, float& absorb, float& mean)
     }
 }
 
+inline void
+stepFactors(float tau, float& absorb, float& mean)
+{
+    stepFactors(tau, tau > kExponentialDepth ? absorbedFraction(tau) : 0.0, absorb, mean);
+}
+
 // Across a step of optical depth tau whose source rises linearly from S - S1 / 2 at the entry to
 // S + S1 / 2 at the exit (mean S): L_out = S + (L_in - S) e^-tau + S1 h(tau), and the mean
 // radiance over the step loses S1 h(tau) / tau, with
 //     h(tau) = 1 - (1 - e^-tau) / 2 - (1 - e^-tau) / tau   (tau^2 / 12 for thin steps, 1/2 opaque).
 // Returns h; @a perTau gets h / tau. Series below tau = 0.1 (the closed form cancels there).
-// With the step's factors (stepFactors(), the same numbers) from one exponential.
+// With the step's factors (stepFactors(), the same numbers) from one exponential, @a a as
+// there.
 inline float
-linearSourceGain(float tau, float& perTau, float& absorb, float& mean)
+linearSourceGain(float tau, double a, float& perTau, float& absorb, float& mean)
 {
     if (tau > 0.1f) {
-        const double t = tau, a = -std::expm1(-t);
+        const double t = tau;
         absorb = float(a);
         mean = float(a / t);
         const double h = 1.0 - 0.5 * a - a / t;
         perTau = float(h / t);
         return float(h);
     }
-    stepFactors(tau, absorb, mean);
+    stepFactors(tau, a, absorb, mean);
     // tau^2 / 12 - tau^3 / 24 + tau^4 / 80 - tau^5 / 360: relative error below 1e-6 here.
     perTau = tau * (1.f / 12.f - tau * (1.f / 24.f - tau * (1.f / 80.f - tau / 360.f)));
     return tau * perTau;
+}
+
+inline float
+linearSourceGain(float tau, float& perTau, float& absorb, float& mean)
+{
+    return linearSourceGain(tau, tau > kExponentialDepth ? absorbedFraction(tau) : 0.0, perTau,
+        absorb, mean);
 }
 
 /// Axes along which the medium does not vary (a periodic box one voxel deep): flat[k].
