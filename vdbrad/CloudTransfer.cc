@@ -124,7 +124,6 @@ struct CloudTransfer::Impl
     std::optional<GroundLayer> ground;
     double groundAlbedo = 0.0;
     std::vector<double> groundDirect, groundDiffuse, groundGain;
-    openvdb::CoordBBox box;          // of the medium solved (and the ground's layer)
     std::vector<float> kappa;        // optical depth per voxel length
     std::vector<float> omega;        // single-scattering albedo
     std::vector<float> beamJ;        // mean radiance of the direct beam, D / (4 pi kappa)
@@ -268,7 +267,6 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     // From here on, the medium solved.
     const Cloud& cloud = impl.solved ? *impl.solved : given;
     const size_t n = impl.n = cloud.size();
-    impl.box = cloud.voxels().bbox();
     const double h = cloud.voxelSize();
     impl.kappa.resize(n);
     impl.omega.resize(n);
@@ -530,20 +528,12 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
     std::vector<double>* landed = layer ? &sw.landed[size_t(g)] : nullptr;
     const bool upward[2] = {unit[up] > 0.0, unit[up] < 0.0};
     const double gain = layer ? groundGain[d] : 0.0;
-    // Light going down from voxel c along t onto the ground cell under the point where its line
-    // meets the layer: wrapped around a periodic box, missed (false) outside an open one's.
+    // Light going down from voxel c along t onto the ground cell under it: wrapped around a
+    // periodic box, missed (false) outside an open one's.
     auto land = [&](const Coord& c, const Vec3d& t, double power) {
-        const Vec3d p = c.asVec3d() + t * ((layer->layer() - c[up]) / t[up]);
-        Coord ijk;
-        for (int k = 0; k < 3; ++k) {
-            if (k == up) { ijk[k] = layer->layer(); continue; }
-            int v = int(std::lround(p[k]));
-            const int lo = this->box.min()[k], dim = this->box.dim()[k];
-            if (periodic) v = lo + ((v - lo) % dim + dim) % dim;
-            else if (v < lo || v >= lo + dim) return false;
-            ijk[k] = v;
-        }
-        (*landed)[layer->cell(ijk)] += power;
+        const int64_t cell = layer->cellBelow(c.asVec3d(), t, periodic != nullptr);
+        if (cell < 0) return false;
+        (*landed)[size_t(cell)] += power;
         return true;
     };
     // The pending voxel of @a ray, its source rising by the slope from the one before it and

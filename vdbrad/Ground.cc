@@ -2,6 +2,8 @@
 
 #include <openvdb/openvdb.h>
 
+#include <cmath>
+
 namespace vdbrad {
 
 GroundLayer::GroundLayer(const openvdb::CoordBBox& box, int up)
@@ -30,6 +32,23 @@ GroundLayer::bbox() const
 {
     if (size() == 0) return openvdb::CoordBBox();
     return openvdb::CoordBBox(coord(0), coord(size() - 1));
+}
+
+int64_t
+GroundLayer::cellBelow(const openvdb::Vec3d& p, const openvdb::Vec3d& t, bool periodic) const
+{
+    const openvdb::Vec3d q = p + t * ((double(mLayer) + 0.5 - p[mUp]) / t[mUp]);
+    openvdb::Coord ijk;
+    ijk[mUp] = mLayer;
+    for (int a = 0; a < 2; ++a) {
+        const int k = mAxis[a];
+        // Voxel c spans [c - 1/2, c + 1/2) in index space.
+        int64_t c = int64_t(std::floor(q[k] + 0.5)) - mMin[k];
+        if (periodic) c = ((c % mDim[a]) + mDim[a]) % mDim[a];
+        else if (c < 0 || c >= mDim[a]) return -1;
+        ijk[k] = mMin[k] + int(c);
+    }
+    return int64_t(cell(ijk));
 }
 
 Cloud

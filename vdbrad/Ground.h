@@ -60,6 +60,10 @@ public:
     openvdb::Coord coord(size_t cell) const;
     /// The layer's voxels, index space.
     openvdb::CoordBBox bbox() const;
+    /// @brief The cell where the line through index-space point @a p along @a t (going down)
+    /// meets the plane of the layer's top face (the box's bottom): wrapped into the footprint
+    /// if @a periodic, else -1 outside it.
+    int64_t cellBelow(const openvdb::Vec3d& p, const openvdb::Vec3d& t, bool periodic) const;
 
     /// @brief @a cloud with the layer's cells added as voxels (extinction 0).
     /// @param source  if not null, for each voxel of the result the voxel of @a cloud it is, or

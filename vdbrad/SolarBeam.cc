@@ -34,24 +34,13 @@ struct Marcher
     std::vector<std::atomic<int64_t>>& landed;   // per ground cell
 
     // What is left of a ray that leaves the medium along d at point q (cell space), on the
-    // ground cell under q + s d where the ray meets the ground's plane (the box's bottom), if
-    // that is inside the footprint (an open box's ray that leaves through a side meets the
-    // plane outside it).
-    void land(Vec3d q, const Vec3d& d, int64_t left) const
+    // ground cell under it (an open box's ray that leaves through a side meets the ground's
+    // plane outside the footprint).
+    void land(const Vec3d& q, const Vec3d& d, int64_t left) const
     {
         if (!ground || left <= 0) return;
-        const double bottom = double(box.min()[up]);
-        q += d * ((bottom - q[up]) / d[up]);
-        Coord ijk;
-        for (int k = 0; k < 3; ++k) {
-            if (k == up) { ijk[k] = ground->layer(); continue; }
-            const double lo = box.min()[k], hi = box.max()[k];
-            // Outside an open box's footprint: missed (a periodic ray is inside but for
-            // rounding, and so is one through an open box's bottom edge).
-            if (!periodic && (q[k] < lo - 1e-9 || q[k] > hi + 1.0 + 1e-9)) return;
-            ijk[k] = int(std::clamp(std::floor(q[k]), lo, hi));
-        }
-        landed[ground->cell(ijk)].fetch_add(left, std::memory_order_relaxed);
+        const int64_t cell = ground->cellBelow(q - Vec3d(0.5), d, periodic);
+        if (cell >= 0) landed[size_t(cell)].fetch_add(left, std::memory_order_relaxed);
     }
 
     // March the ray o + t d (index space, unit d) from t0 to t1, or, periodic, across the
