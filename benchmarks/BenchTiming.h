@@ -35,5 +35,21 @@ processCpuSeconds()
         + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
+/// CPU (processCpuSeconds()) and wall seconds of one run of @a f.
+struct Spent
+{
+    double cpu = 0.0, wall = 0.0;
+};
+template<typename F>
+inline Spent
+spent(F&& f)
+{
+    const double cpu0 = processCpuSeconds();
+    const auto t0 = std::chrono::steady_clock::now();
+    f();
+    return {processCpuSeconds() - cpu0,
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()};
+}
+
 } // namespace bench
 } // namespace vdbrad

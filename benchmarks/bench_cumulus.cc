@@ -18,10 +18,10 @@
 
 #include <openvdb/openvdb.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -86,13 +86,13 @@ main(int argc, char** argv)
         o.sunZenith = zenith;
         o.phase = vdbrad::PhaseFunction::henyeyGreenstein(g);
         if (grounded) o.groundAlbedo = groundAlbedo;
-        const double cpu0 = vdbrad::bench::processCpuSeconds();
-        const auto t0 = std::chrono::steady_clock::now();
-        vdbrad::CloudTransfer transfer(cloud, o);
-        transfer.solve();
-        const double wall =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        const double cpu = vdbrad::bench::processCpuSeconds() - cpu0;
+        std::unique_ptr<vdbrad::CloudTransfer> solved;
+        const vdbrad::bench::Spent spent = vdbrad::bench::spent([&] {
+            solved.reset(new vdbrad::CloudTransfer(cloud, o));
+            solved->solve();
+        });
+        const vdbrad::CloudTransfer& transfer = *solved;
+        const double cpu = spent.cpu, wall = spent.wall;
         const vdbrad::CloudBudget& b = transfer.budget();
         std::printf("%10zu %6d %9.5f %7.2f%% %9.5f %7.2f%% %10.2e %6d %8.1f %8.1f\n",
             transfer.directions().size(), vdbrad::CloudTransfer::phaseOrderFor(o), b.albedo,

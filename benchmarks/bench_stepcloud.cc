@@ -26,10 +26,10 @@
 
 #include <openvdb/openvdb.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -93,13 +93,13 @@ main(int argc, char** argv)
         if (accelerate != "auto") o.accelerate = vdbrad::accelerationFromString(accelerate);
         o.minPeriod = minPeriod;
         if (grounded) o.groundAlbedo = groundAlbedo;
-        const double cpu0 = vdbrad::bench::processCpuSeconds();
-        const auto t0 = std::chrono::steady_clock::now();
-        vdbrad::CloudTransfer transfer(cloud, o);
-        transfer.solve();
-        const double wall =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        const double cpu = vdbrad::bench::processCpuSeconds() - cpu0;
+        std::unique_ptr<vdbrad::CloudTransfer> solved;
+        const vdbrad::bench::Spent spent = vdbrad::bench::spent([&] {
+            solved.reset(new vdbrad::CloudTransfer(cloud, o));
+            solved->solve();
+        });
+        const vdbrad::CloudTransfer& transfer = *solved;
+        const double cpu = spent.cpu, wall = spent.wall;
         const vdbrad::CloudBudget& b = transfer.budget();
         if (&experiments.front() == &experiment) described = transfer.describe();
         vdbrad::test::SlabResult mc;

@@ -260,6 +260,21 @@ countArrival(uint64_t k, Tally& tally)
     tally.arrivalsSq += 2 * k - 1;  // k^2 - (k - 1)^2: the photon's k^2 builds up exactly
 }
 
+/// A tentative collision of delta tracking at extinction @a sigmaMax where the medium's is
+/// @a sigmaHere: null (the photon flies on), absorbed, or scattered (@a dir turned by
+/// Henyey-Greenstein g). Draws in this order: the real-collision test, the absorption test, the
+/// scattering angle and azimuth (the references' seeded results depend on it).
+enum class Collision { Null, Absorbed, Scattered };
+inline Collision
+deltaCollision(ReferenceRng& rng, double sigmaHere, double sigmaMax, double omega0, double g,
+    Vec3& dir)
+{
+    if (!(rng.open01() * sigmaMax < sigmaHere)) return Collision::Null;
+    if (!(rng.open01() < omega0)) return Collision::Absorbed;
+    dir = scatter(dir, sampleHenyeyGreenstein(g, rng.open01()), rng.open01());
+    return Collision::Scattered;
+}
+
 /// One photon from @a pos along @a dir until it escapes or is absorbed. @a exit(pos, dir, face)
 /// returns the distance to the boundary along dir (infinite if none) and sets the face there.
 /// Leaving through face 2 (y = 0) is an arrival at the ground, which reflects it with probability
@@ -618,13 +633,13 @@ columnsMonteCarlo(const ColumnsProblem& p, const MonteCarloRun& run = MonteCarlo
             pos = pos + step * dir;
             pos.x -= W * std::floor(pos.x / W);
             const size_t c = std::min(n - 1, size_t(pos.x / w));
-            if (!(rng.open01() * sigmaMax < sigma[c])) continue;   // a null collision
-            if (!(rng.open01() < p.omega0)) {
+            const detail::Collision hit =
+                detail::deltaCollision(rng, sigma[c], sigmaMax, p.omega0, p.g, dir);
+            if (hit == detail::Collision::Absorbed) {
                 ++t.absorbed;
                 return;
             }
-            scattered = true;
-            dir = detail::scatter(dir, sampleHenyeyGreenstein(p.g, rng.open01()), rng.open01());
+            if (hit == detail::Collision::Scattered) scattered = true;
         }
     });
     SlabResult r;
@@ -771,13 +786,13 @@ voxelMediumMonteCarlo(const VoxelMediumProblem& p, const MonteCarloRun& run = Mo
             }
             pos = pos + step * dir;
             if (periodic) wrap(pos);
-            if (!(rng.open01() * sigmaMax < sigmaAt(pos))) continue;  // a null collision
-            if (!(rng.open01() < p.omega0)) {
+            const detail::Collision hit =
+                detail::deltaCollision(rng, sigmaAt(pos), sigmaMax, p.omega0, p.g, dir);
+            if (hit == detail::Collision::Absorbed) {
                 ++t.absorbed;
                 return;
             }
-            scattered = true;
-            dir = detail::scatter(dir, sampleHenyeyGreenstein(p.g, rng.open01()), rng.open01());
+            if (hit == detail::Collision::Scattered) scattered = true;
         }
     });
     BoxResult r;
