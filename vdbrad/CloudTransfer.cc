@@ -1,7 +1,9 @@
 #include "vdbrad/CloudTransfer.h"
 
 #include "vdbrad/Denormals.h"
+#include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
+#include "vdbrad/FogSurfaces.h"
 #include "vdbrad/Ground.h"
 #include "vdbrad/HarmonicQuadrature.h"
 #include "vdbrad/LinePartition.h"
@@ -46,6 +48,8 @@ struct Ray
     bool started = false;
     bool pending = false;      // `last` is not finished yet
     bool hasBefore = false;    // the voxel before `last` on the line is its neighbour
+    bool receiving = false;    // `last` is a surface voxel that took the line's light
+    uint32_t run = FogSurfaces::kNone;   // the surface voxel `last` if it sends light along the line
     uint32_t last = 0;
     // A linear source only: last's source (total, higher moments, beam), the one before it's.
     float s = 0.f, r = 0.f, b = 0.f;
@@ -108,6 +112,36 @@ rowTimesMatrix(const float* a, const float* b, size_t H, size_t stride, size_t w
 
 } // namespace
 
+// A line in sense t meets surface voxel v, t.n_v = c != 0 (FogSurfaces.h), @a adjacent if v
+// is the neighbour on the line of the voxel before it. A run of senders ends before a receiver
+// and before a sender that is not its neighbour, sending @a sent(u) (the radiance leaving its
+// last voxel u); a sender not continuing a run absorbs with its back what comes from behind
+// (into @a backs, times @a etendue). Returns whether v is the first of a run of receivers: it
+// then takes the line's radiance (the caller lands it) and the line goes on dark.
+template<typename SentT>
+inline bool
+meetSurface(Ray& ray, uint32_t v, double c, bool adjacent, double etendue, SentT&& sent,
+    double& backs)
+{
+    const bool inRun = ray.run != FogSurfaces::kNone;
+    if (c > 0.0 && inRun && adjacent) {
+        ray.run = v;
+        return false;
+    }
+    if (inRun) ray.radiance = sent(ray.run);
+    ray.run = FogSurfaces::kNone;
+    if (c > 0.0) {
+        backs += double(ray.radiance) * etendue;
+        ray.radiance = 0.f;
+        ray.run = v;
+        ray.receiving = false;
+        return false;
+    }
+    const bool first = inRun || !(ray.receiving && adjacent);
+    ray.receiving = true;
+    return first;
+}
+
 struct CloudTransfer::Impl
 {
     static constexpr int kGroups = SweepSchedule::kGroups;
@@ -124,6 +158,26 @@ struct CloudTransfer::Impl
     std::optional<GroundLayer> ground;
     double groundAlbedo = 0.0;
     std::vector<double> groundDirect, groundDiffuse, groundGain;
+    // Surfaces inside the medium (FogSurfaces.h): per solved voxel the surface voxel it is (or
+    // kNone), also in each pattern's order; per surface voxel the direct beam's power on its
+    // front, the diffuse light's (the last sweep's) and Z_v; the beam's power on their backs.
+    std::unique_ptr<FogSurfaces> surfaces;
+    std::vector<uint32_t> surfaceOf;
+    std::array<std::vector<uint32_t>, SweepSchedule::kPatterns> surfaceOrdered;
+    std::vector<double> surfaceDirect, surfaceLanded, surfaceNorm;
+    std::vector<double> surfaceArea;   // A_v, voxel faces (FogSurfaces.h)
+    std::vector<uint8_t> enclosed;     // per surface voxel: it faces a closed cavity
+    double backDirect = 0.0, emitted = 0.0;
+    // The areas A_v: one sweep of every direction applying the surfaces' rule alone.
+    std::vector<double> surfaceAreas() const;
+    // What surface voxel v sends: B_v / Z_v, B_v = E_v + rho_v (direct + landed) / A_v.
+    double surfaceSends(size_t v) const
+    {
+        if (!(surfaceArea[v] > 0.0) || !(surfaceNorm[v] > 0.0)) return 0.0;
+        const double B = double(surfaces->emission(v)) / outputScale + double(surfaces->albedo(v))
+            * (surfaceDirect[v] + surfaceLanded[v]) / surfaceArea[v];
+        return B / surfaceNorm[v];
+    }
     std::vector<float> kappa;        // optical depth per voxel length
     std::vector<float> omega;        // single-scattering albedo
     std::vector<float> beamJ;        // mean radiance of the direct beam, D / (4 pi kappa)
@@ -168,6 +222,11 @@ struct CloudTransfer::Impl
         std::array<std::array<double, 2>, SweepSchedule::kGroups> escaped{};
         std::vector<double> leftNow;
         std::array<std::vector<double>, SweepSchedule::kGroups> landed;
+        // Surfaces: per surface voxel P_v / Z_v (what it sends), and per group what lands on
+        // each one's front and what reaches their backs.
+        const std::vector<double>& surfaceEmits;
+        std::array<std::vector<double>, SweepSchedule::kGroups> onSurface;
+        std::array<double, SweepSchedule::kGroups> backs{};
     };
     // Anisotropic scattering works on a batch of a group's directions at a time: the sources'
     // higher-moment part for every voxel and (direction, sense) of the batch by one product of
@@ -264,6 +323,18 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         impl.copyOf = std::move(from);
         impl.solved.reset(new Cloud(std::move(grounded)));
     }
+    if (options.surfaces) {
+        if (options.periodic || options.groundAlbedo) {
+            OPENVDB_THROW(openvdb::ValueError, "surfaces inside a cloud are solved in an open "
+                "box without a ground (give the ground as surface voxels)");
+        }
+        impl.surfaces.reset(new FogSurfaces(*options.surfaces, options.surfaceChannel));
+        std::vector<uint32_t> from;
+        Cloud merged = impl.surfaces->merged(given, from, impl.surfaceOf);
+        static_assert(FogSurfaces::kNone == GroundLayer::kGround, "one mark for no cloud voxel");
+        impl.copyOf = std::move(from);
+        impl.solved.reset(new Cloud(std::move(merged)));
+    }
     // From here on, the medium solved.
     const Cloud& cloud = impl.solved ? *impl.solved : given;
     const size_t n = impl.n = cloud.size();
@@ -304,8 +375,14 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     }
     impl.outputScale = std::ldexp(1.0, exponent);
     const GroundLayer* layer = impl.ground ? &*impl.ground : nullptr;
+    std::vector<uint8_t> opaque;
+    if (impl.surfaces) {
+        opaque.resize(n);
+        for (size_t i = 0; i < n; ++i) opaque[i] = impl.surfaceOf[i] != FogSurfaces::kNone;
+    }
     SolarBeamResult beam = traceSolarBeam(cloud.voxels(), impl.kappa, toSun, up, options.periodic,
-        options.beamRaysPerVoxel, options.irradiance / impl.outputScale, interrupt, layer);
+        options.beamRaysPerVoxel, options.irradiance / impl.outputScale, interrupt, layer,
+        impl.surfaces ? &opaque : nullptr);
     if (interrupt) interrupt->end();
     impl.incident = beam.incident;
     impl.deposited = std::move(beam.deposited);
@@ -316,6 +393,21 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         impl.groundDiffuse.assign(impl.ground->size(), 0.0);
         for (double e : impl.groundDirect) impl.directOut -= e;
         impl.directOut = std::max(impl.directOut, 0.0);
+    }
+    if (impl.surfaces) {
+        // The beam's power on a surface voxel: on its front if the beam meets it from there.
+        impl.surfaceDirect.assign(impl.surfaces->size(), 0.0);
+        impl.surfaceLanded.assign(impl.surfaces->size(), 0.0);
+        for (size_t i = 0; i < n; ++i) {
+            const uint32_t s = impl.surfaceOf[i];
+            if (s == FogSurfaces::kNone) continue;
+            if (toSun.dot(Vec3d(impl.surfaces->normal(s))) > 0.0) {
+                impl.surfaceDirect[s] += impl.deposited[i];
+            } else {
+                impl.backDirect += impl.deposited[i];
+            }
+            impl.deposited[i] = 0.0;
+        }
     }
     impl.beamJ.resize(n);
     for (size_t i = 0; i < n; ++i) {
@@ -336,6 +428,13 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
             schedule.toPatternOrder(p, impl.kappa, impl.kappaOrdered[p]);
         }
     }
+    if (impl.surfaces) {
+        for (size_t p = 0; p < impl.surfaceOrdered.size(); ++p) {
+            if (!schedule.pattern(p).empty()) {
+                schedule.toPatternOrder(p, impl.surfaceOf, impl.surfaceOrdered[p]);
+            }
+        }
+    }
     if (options.periodic) {
         impl.flat = PeriodicBoundary::flatAxes(cloud.voxels().bbox().dim(), up);
         impl.boundary.reset(new PeriodicBoundary(cloud.voxels().bbox(), up, schedule,
@@ -345,7 +444,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     // The moments, the light carried across periodic side faces and the ground's (see
     // iterate()).
     impl.mixer = mIteration.makeMixer<float>(n * size_t(impl.M) + impl.leftFace.size()
-        + impl.groundDiffuse.size());
+        + impl.groundDiffuse.size() + impl.surfaceLanded.size());
     // Escape factors for the self-scattering elimination (iterate()): per direction, the
     // weight Omega (Y_00^2 of both senses) the sweeps use.
     {
@@ -367,6 +466,26 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
                 mu[d] = std::abs(schedule.directions().unit(d)[up]);
             }
             impl.groundGain = groundEmission(omega, mu, step);
+        }
+        if (impl.surfaces) {
+            std::vector<Vec3d> units(dirs);
+            std::vector<float> omega(dirs);
+            for (size_t d = 0; d < dirs; ++d) {
+                units[d] = sweptLine(schedule.directions().direction(d), impl.flat).unit;
+                omega[d] = float(kPi * schedule.directions().factor(d));
+            }
+            impl.surfaceNorm = impl.surfaces->normalisers(units, omega);
+            const Regions regions = findRegions(impl.surfaces->scene().voxels(),
+                impl.surfaces->scene().normals(), LineType::Naive);
+            impl.enclosed.resize(impl.surfaces->size());
+            for (size_t v = 0; v < impl.enclosed.size(); ++v) {
+                impl.enclosed[v] = regions.region[v] != 0;
+            }
+            impl.surfaceArea = impl.surfaceAreas();
+            for (size_t v = 0; v < impl.surfaceArea.size(); ++v) {
+                impl.emitted += double(impl.surfaces->emission(v)) * impl.surfaceArea[v];
+            }
+            impl.emitted /= impl.outputScale;
         }
     }
     mIteration.addSeconds(
@@ -431,7 +550,15 @@ CloudTransfer::chooseAcceleration(const Cloud& cloud, const CloudTransferOptions
     // reflects about that same fraction of it down again: one more loop, at most rho s.
     const double cloudAlone = omegaMax * tauMax / (tauMax + 2.0);
     const double rho = options.groundAlbedo.value_or(0.0);
-    const double slowest = cloudAlone + (1.0 - cloudAlone) * rho * cloudAlone;
+    double slowest = cloudAlone + (1.0 - cloudAlone) * rho * cloudAlone;
+    // Surfaces facing each other (a room) pass light back and forth: their albedo is the loop.
+    if (options.surfaces) {
+        const Attribute& a = options.surfaces->albedo();
+        for (size_t s = 0; s < options.surfaces->size(); ++s) {
+            slowest = std::max(slowest, double(a.isRgb() ? a.rgb(s)[options.surfaceChannel]
+                                                         : a.grey(s)));
+        }
+    }
     return slowest > 0.5 ? Acceleration::Anderson : Acceleration::None;
 }
 
@@ -536,6 +663,30 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
         (*landed)[size_t(cell)] += power;
         return true;
     };
+    // Surfaces (FogSurfaces.h): the rule at surface voxel v (passed over where the line runs
+    // along it); a run of senders sends in the pass with the sources only.
+    const std::vector<uint32_t>* surfaceP = surfaces ? &surfaceOrdered[p] : nullptr;
+    std::vector<double>* onSurface = surfaces ? &sw.onSurface[size_t(g)] : nullptr;
+    double& backs = sw.backs[size_t(g)];
+    bool sending = true;
+    auto sent = [&](uint32_t u) { return sending ? float(sw.surfaceEmits[u]) : 0.f; };
+    auto endRun = [&](Ray& ray) {
+        if (ray.run != FogSurfaces::kNone) ray.radiance = sent(ray.run);
+        ray.run = FogSurfaces::kNone;
+        ray.receiving = false;
+    };
+    auto visitSurface = [&](Ray& ray, uint32_t x, uint32_t v, bool forward) {
+        const double c = (forward ? 1.0 : -1.0) * unit.dot(Vec3d(surfaces->normal(v)));
+        if (c == 0.0) return;
+        const bool adjacent = std::abs(pattern.sweep->coord(x)[major]
+            - pattern.sweep->coord(ray.last)[major]) == 1;
+        if (meetSurface(ray, v, c, adjacent, etendue, sent, backs)) {
+            (*onSurface)[v] += double(ray.radiance) * etendue;
+            ray.radiance = 0.f;
+        }
+        ray.last = x;
+        ray.pending = false;
+    };
     // The pending voxel of @a ray, its source rising by the slope from the one before it and
     // @a after (the next one's source, null at a gap or the line's end): its moments, and the
     // radiance that leaves it. Compiled apart for a constant source (Lin false), which is then
@@ -578,6 +729,7 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
     };
     // A pass without sources (light wrapping a periodic box) has nothing to slope.
     auto pass = [&](bool sources, auto lin) {
+        sending = sources;
         std::fill(exits.begin(), exits.end(), 0.0);
         pattern.sweep->walk(sigma, schedule->reversed(d), work,
             [&](uint32_t x, Ray& ray, bool forward) {
@@ -613,6 +765,20 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                     ray.last = x;
                     ray.pending = false;
                     return;
+                }
+                if (surfaceP) {
+                    const uint32_t v = (*surfaceP)[x];
+                    if (v != FogSurfaces::kNone) {
+                        if constexpr (decltype(lin)::value) {
+                            if (ray.pending) {
+                                finish(lin, ray, ray.s, ray.r, ray.b, sense, nullptr);
+                            }
+                            ray.hasBefore = false;
+                        }
+                        visitSurface(ray, x, v, forward);
+                        return;
+                    }
+                    endRun(ray);
                 }
                 const float* y = yAcc[sense];
                 // The source: its isotropic part s0, its higher moments' part r and the beam's
@@ -651,6 +817,14 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                             finish(lin, ray, ray.s, ray.r, ray.b, forward ? 0 : 1, nullptr);
                         }
                     }
+                        if (surfaceP) {
+                        // A run that ends the line sends out of the box, unless it faces a
+                        // closed cavity (FogSurfaces.h).
+                        if (ray.run != FogSurfaces::kNone && enclosed[ray.run]) {
+                            ray.run = FogSurfaces::kNone;
+                        }
+                        endRun(ray);
+                    }
                     // (An isolated line's tube has no cross-section: nothing leaves it.)
                     if (!ray.started || ray.radiance == 0.f || line.isolated) continue;
                     const double power = double(ray.radiance) * etendue;
@@ -680,6 +854,60 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
         periodic->followWraps(d, periodic->rise(schedule->directions(), d), unit[up], entry,
             exits, [&] { pass(false, std::false_type()); }, &sw.leftNow[periodic->slice(d)], escaped);
     }
+}
+
+std::vector<double>
+CloudTransfer::Impl::surfaceAreas() const
+{
+    // Per group, then added in a fixed order: the same bits for any thread count.
+    const size_t count = surfaces->size();
+    std::array<std::vector<double>, kGroups> parts;
+    const SweepProgress progress(nullptr, schedule->directions().size());
+    schedule->forEachGroup(progress, "surface areas", [](int) { return true; }, [&](int g) {
+        const size_t p = SweepSchedule::patternOf(g);
+        const SweepSchedule::Pattern& pattern = schedule->pattern(p);
+        const std::vector<uint32_t>& surfaceP = surfaceOrdered[p];
+        std::vector<double>& area = parts[size_t(g)];
+        area.assign(count, 0.0);
+        LineSweep::Lanes<Ray>& work = lanes.local();
+        double backs = 0.0;
+        auto none = [](uint32_t) { return 0.f; };
+        schedule->forDirections(g, [&](size_t d) {
+            const SweptLine line = sweptLine(schedule->directions().direction(d), flat);
+            const double etendue = double(float(kPi * schedule->directions().factor(d)))
+                / double(line.step);
+            const int major = LinePartition(line.sigma, LineType::Naive).majorAxis();
+            pattern.sweep->walk(line.sigma, schedule->reversed(d), work,
+                [&](uint32_t x, Ray& ray, bool forward) {
+                    const uint32_t v = surfaceP[x];
+                    if (v == FogSurfaces::kNone) {
+                        ray.run = FogSurfaces::kNone;
+                        ray.receiving = false;
+                    } else {
+                        const double c = (forward ? 1.0 : -1.0)
+                            * line.unit.dot(Vec3d(surfaces->normal(v)));
+                        if (c == 0.0) return;
+                        const bool adjacent = ray.started && std::abs(pattern.sweep->coord(x)[major]
+                            - pattern.sweep->coord(ray.last)[major]) == 1;
+                        // A line's first voxel receives from outside the box: not where it
+                        // faces a closed cavity (the mirror of the sweep's rule at line ends).
+                        if (meetSurface(ray, v, c, adjacent, etendue, none, backs)
+                            && (ray.started || !enclosed[v])) {
+                            area[v] += etendue;
+                        }
+                    }
+                    ray.started = true;
+                    ray.last = x;
+                },
+                [](const Ray*, size_t, bool) {});
+        });
+    });
+    std::vector<double> A(count, 0.0);
+    for (const std::vector<double>& part : parts) {
+        for (size_t v = 0; v < part.size(); ++v) A[v] += part[v];
+    }
+    for (size_t v = 0; v < count; ++v) A[v] = surfaceNorm[v] > 0.0 ? A[v] / surfaceNorm[v] : 0.0;
+    return A;
 }
 
 double
@@ -739,12 +967,19 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     for (size_t c = 0; c < cells; ++c) {
         emits[c] = impl.groundAlbedo * (impl.groundDirect[c] + impl.groundDiffuse[c]);
     }
-    Impl::Sweep sw{S, B, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {}};
+    // What each surface voxel sends in this sweep, over Z_v: its emission and its albedo times
+    // what reached its front.
+    const size_t surfaceCount = impl.surfaceLanded.size();
+    std::vector<double> surfaceEmits(surfaceCount);
+    for (size_t v = 0; v < surfaceCount; ++v) surfaceEmits[v] = impl.surfaceSends(v);
+    Impl::Sweep sw{S, B, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {},
+        surfaceEmits, {}, {}};
     SweepProgress progress(interrupt, directions().size());
     const size_t perBatch = Impl::batchSize(n, M);
     schedule.forEachGroup(progress, "cloud transfer", [](int) { return true; }, [&](int g) {
         sw.G[size_t(g)].assign(n * M, 0.f);
         sw.landed[size_t(g)].assign(cells, 0.0);
+        sw.onSurface[size_t(g)].assign(surfaceCount, 0.0);
         std::vector<size_t> dirs;
         schedule.forDirections(g, [&](size_t d) { dirs.push_back(d); });
         for (size_t b = 0; b < dirs.size() && !progress.cancelled(); b += perBatch) {
@@ -767,6 +1002,7 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         x = impl.moments;
         x.insert(x.end(), impl.leftFace.begin(), impl.leftFace.end());
         x.insert(x.end(), impl.groundDiffuse.begin(), impl.groundDiffuse.end());
+        x.insert(x.end(), impl.surfaceLanded.begin(), impl.surfaceLanded.end());
     }
     // Light that reached the ground, the groups added in a fixed order.
     std::vector<double> landed(cells, 0.0);
@@ -821,6 +1057,27 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         directOnGround += impl.groundDirect[c];
     }
     impl.groundDiffuse = landed;
+    // The surfaces' radiosity, B / pi = (E A + rho (direct + landed)) / (A pi) at each voxel,
+    // is an unknown too; their backs absorb what reaches them.
+    double surfaceAbsorbed = impl.backDirect;
+    {
+        std::vector<double> onSurface(surfaceCount, 0.0);
+        for (int g = 0; g < SweepSchedule::kGroups; ++g) {
+            const std::vector<double>& part = sw.onSurface[size_t(g)];
+            for (size_t v = 0; v < surfaceCount; ++v) onSurface[v] += part[v];
+            surfaceAbsorbed += sw.backs[size_t(g)];
+        }
+        for (size_t v = 0; v < surfaceCount; ++v) {
+            const double rho = impl.surfaces->albedo(v), reached = impl.surfaceDirect[v] + onSurface[v];
+            surfaceAbsorbed += (1.0 - rho) * reached;
+            if (!(impl.surfaceArea[v] > 0.0)) continue;
+            const double perB = 1.0 / (kPi * impl.surfaceArea[v]);
+            maxChange = std::max(maxChange, rho * perB * std::abs(onSurface[v] - impl.surfaceLanded[v]));
+            maxJ = std::max(maxJ, double(impl.surfaces->emission(v)) / (kPi * impl.outputScale)
+                + rho * perB * reached);
+        }
+        impl.surfaceLanded = std::move(onSurface);
+    }
 
     if (impl.boundary) impl.leftFace.swap(sw.leftNow);
     if (impl.mixer) {
@@ -830,15 +1087,18 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         std::vector<float> gx = impl.moments;
         gx.insert(gx.end(), impl.leftFace.begin(), impl.leftFace.end());
         gx.insert(gx.end(), impl.groundDiffuse.begin(), impl.groundDiffuse.end());
+        gx.insert(gx.end(), impl.surfaceLanded.begin(), impl.surfaceLanded.end());
         andersonStep(*impl.mixer, x.data(), gx.data(), [&](const float* v) {
             for (size_t i = 0; i < n; ++i) if (!(v[i * M] >= 0.f)) return false;
             for (size_t k = n * M; k < gx.size(); ++k) if (!(v[k] >= 0.f)) return false;
             return true;
         });
         const auto faces = gx.begin() + long(n * M), lands = faces + long(impl.leftFace.size());
+        const auto onSurfaces = lands + long(cells);
         std::copy(gx.begin(), faces, impl.moments.begin());
         std::copy(faces, lands, impl.leftFace.begin());
-        std::copy(lands, gx.end(), impl.groundDiffuse.begin());
+        std::copy(lands, onSurfaces, impl.groundDiffuse.begin());
+        std::copy(onSurfaces, gx.end(), impl.surfaceLanded.begin());
         for (size_t i = 0; i < n; ++i) impl.diffuseJ[i] = float(double(impl.moments[i * M]) * y00);
     }
     // Light leaving the box, added in a fixed order: pattern by pattern, then its two halves
@@ -853,8 +1113,11 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
             up0 += e[1];
         }
     }
-    const double in = impl.incident > 0.0 ? impl.incident : 1.0;
-    mBudget.incident = impl.incident * impl.outputScale;
+    const double total = impl.incident + impl.emitted;
+    const double in = total > 0.0 ? total : 1.0;
+    mBudget.incident = total * impl.outputScale;
+    mBudget.emitted = impl.emitted / in;
+    mBudget.surfaceAbsorptance = surfaceAbsorbed / in;
     mBudget.albedo = up0 / in;
     mBudget.transmittance = (down0 + impl.directOut + onGround) / in;
     mBudget.directTransmittance = (impl.directOut + directOnGround) / in;
@@ -884,7 +1147,9 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
             if (k != options.up) footprint *= size_t(dim[k]) * size_t(copies[k]);
         }
     }
-    const size_t n = cloud.size() * tiles + footprint, t = size_t(std::max(threads, 1));
+    const size_t surfaces = options.surfaces ? options.surfaces->size() : 0;
+    const size_t n = cloud.size() * tiles + footprint + surfaces;
+    const size_t t = size_t(std::max(threads, 1));
     const int order = phaseOrderFor(options);
     const size_t M = size_t(order + 1) * size_t(order + 1);
     const bool anderson = chooseAcceleration(cloud, options) == Acceleration::Anderson;
@@ -903,8 +1168,15 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     }
     // The copies of a narrow periodic box, or the ground's layer added: coordinates,
     // extinction, the voxel copied, index.
-    if (tiles > 1 || footprint > 0) perVoxel += 12 + 4 + 4 + 8;
+    if (tiles > 1 || footprint > 0 || surfaces > 0) perVoxel += 12 + 4 + 4 + 8;
     size_t bytes = n * perVoxel;
+    // Surfaces: the voxel each solved one is (in each pattern's order too), and per surface
+    // voxel its normal, albedo, area, emission, Z, direct and landed power, per group what lands.
+    if (surfaces > 0) {
+        bytes += n * 4 * 5 + surfaces * (12 + 4 + 8 * 5 + 8 * size_t(Impl::kGroups)
+            + (anderson ? 8 : 0));
+        if (anderson) bytes += AndersonMixer::bytes(surfaces, options.andersonDepth);
+    }
     if (options.periodic) {
         // Light carried across the side faces: per direction, sense, face and layer, twice.
         const openvdb::CoordBBox box = cloud.voxels().bbox();
@@ -937,6 +1209,7 @@ CloudTransfer::fingerprint() const
         mQuadratureDegree, impl.flat[0] + 2 * impl.flat[1] + 4 * impl.flat[2]};
     h = hashBytes(options, sizeof options, h);
     if (impl.ground) h = hashBytes(&impl.groundAlbedo, sizeof(double), h);
+    if (impl.surfaces) h = impl.surfaces->hash(h);
     return h;
 }
 
@@ -955,6 +1228,10 @@ CloudTransfer::saveState(SolverState& state) const
         state.put("groundDiffuse", impl.groundDiffuse);
         state.put("groundReflected", &mBudget.groundReflected, 1);
     }
+    if (impl.surfaces) {
+        state.put("surfaceLanded", impl.surfaceLanded);
+        state.put("surfaceAbsorptance", &mBudget.surfaceAbsorptance, 1);
+    }
     if (impl.mixer) impl.mixer->save(state, "anderson.");
 }
 
@@ -970,6 +1247,12 @@ CloudTransfer::restoreState(const SolverState& state)
     if (impl.ground) {
         impl.groundDiffuse = state.get<double>("groundDiffuse", impl.groundDiffuse.size());
         mBudget.groundReflected = state.get<double>("groundReflected", 1)[0];
+    }
+    if (impl.surfaces) {
+        impl.surfaceLanded = state.get<double>("surfaceLanded", impl.surfaceLanded.size());
+        mBudget.surfaceAbsorptance = state.get<double>("surfaceAbsorptance", 1)[0];
+        const double total = impl.incident + impl.emitted;
+        mBudget.emitted = total > 0.0 ? impl.emitted / total : 0.0;
     }
     if (impl.mixer) impl.mixer->restore(state, "anderson.");
     mBudget.incident = budget[0];
@@ -1000,6 +1283,27 @@ CloudTransfer::meanIntensity() const
     const double per = scale / (double(mCopies.x()) * double(mCopies.y()) * double(mCopies.z()));
     for (size_t i = 0; i < J.size(); ++i) J[i] = float(sum[i] * per);
     return J;
+}
+
+std::vector<float>
+CloudTransfer::surfaceRadiosity() const
+{
+    const Impl& impl = *mImpl;
+    if (!impl.surfaces) return {};
+    std::vector<float> B(impl.surfaces->size());
+    for (size_t v = 0; v < B.size(); ++v) {
+        // A voxel no line reaches (no area) shows its emission.
+        B[v] = impl.surfaceArea[v] > 0.0
+            ? float(impl.surfaceSends(v) * impl.surfaceNorm[v] * impl.outputScale)
+            : impl.surfaces->emission(v);
+    }
+    return B;
+}
+
+const std::vector<double>&
+CloudTransfer::surfaceArea() const
+{
+    return mImpl->surfaceArea;
 }
 
 std::vector<float>
@@ -1088,29 +1392,119 @@ CloudTransfer::describe() const
     if (mOptions.accelerate == Acceleration::Anderson) os << ", Anderson acceleration";
     if (mOptions.source == VoxelSource::Constant) os << ", constant source per voxel";
     if (mImpl->ground) os << ", over a Lambertian ground of albedo " << mImpl->groundAlbedo;
+    if (mImpl->surfaces) {
+        os << ", with " << withCommas(mImpl->surfaces->size()) << " surface voxels";
+        if (mOptions.surfaces->isRgb()) os << " (channel " << mOptions.surfaceChannel << ")";
+    }
     return os.str();
 }
+
+namespace {
+
+std::string
+budgetLine(const CloudBudget& b, const CloudTransferOptions& options)
+{
+    std::ostringstream os;
+    os << "albedo " << b.albedo << ", transmittance " << b.transmittance << " (direct "
+       << b.directTransmittance << "), absorptance " << b.absorptance;
+    if (options.groundAlbedo) os << ", reflected by the ground " << b.groundReflected;
+    if (options.surfaces) {
+        os << ", emitted by the surfaces " << b.emitted << ", absorbed by them "
+           << b.surfaceAbsorptance;
+    }
+    os << "; balance " << b.balance();
+    return os.str();
+}
+
+SolveStats
+statsOf(const CloudTransfer& transfer)
+{
+    SolveStats stats;
+    stats.directions = int(transfer.directions().size());
+    stats.iterations = transfer.iterationCount();
+    stats.residual = transfer.residuals().empty() ? 0.0 : transfer.residuals().back();
+    stats.seconds = transfer.seconds();
+    return stats;
+}
+
+// An RGB surface scene in a grey medium: light of each colour travels alone, so each channel
+// is its own transfer (the medium's work three times over).
+openvdb::GridBase::Ptr
+solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
+    openvdb::GridBase::Ptr* radiosity)
+{
+    if (!control.checkpoint.empty() || !control.resume.empty()) {
+        OPENVDB_THROW(openvdb::ValueError, "checkpoints are not supported for an RGB surface "
+            "scene inside a cloud (three solves, one per channel)");
+    }
+    const Scene& scene = *options.surfaces;
+    std::vector<openvdb::Vec3f> J(cloud.size()), B(scene.size());
+    openvdb::Vec3f albedo, transmittance, absorptance;
+    SolveStats stats;
+    double residual = 0.0;
+    for (int c = 0; c < 3; ++c) {
+        CloudTransferOptions o = options;
+        o.surfaceChannel = c;
+        CloudTransfer transfer(cloud, o, interrupt);
+        const bool framed = interrupt && !control.beforeIteration;
+        if (framed) interrupt->start("cloud transfer");
+        iterateSolve(transfer, control, interrupt);
+        if (framed) interrupt->end();
+        const CloudBudget& b = transfer.budget();
+        if (control.note) control.note("channel " + std::string(1, "rgb"[c]) + ": " + budgetLine(b, o));
+        const std::vector<float> j = transfer.meanIntensity(), r = transfer.surfaceRadiosity();
+        for (size_t i = 0; i < J.size(); ++i) J[i][c] = j[i];
+        for (size_t v = 0; v < B.size(); ++v) B[v][c] = r[v];
+        albedo[c] = float(b.albedo);
+        transmittance[c] = float(b.transmittance);
+        absorptance[c] = float(b.absorptance);
+        const SolveStats s = statsOf(transfer);
+        stats.directions = s.directions;
+        stats.iterations = std::max(stats.iterations, s.iterations);
+        residual = std::max(residual, s.residual);
+        stats.seconds += s.seconds;
+    }
+    stats.residual = residual;
+    if (radiosity) *radiosity = makeRadiosityGrid(scene, B, stats);
+    openvdb::Vec3SGrid::Ptr g = arrayToGrid(cloud.voxels(), J, cloud.transform(),
+        "mean_intensity");
+    g->insertMeta("vdbrad:albedo", openvdb::Vec3SMetadata(albedo));
+    g->insertMeta("vdbrad:transmittance", openvdb::Vec3SMetadata(transmittance));
+    g->insertMeta("vdbrad:absorptance", openvdb::Vec3SMetadata(absorptance));
+    g->insertMeta(meta::kIterations, openvdb::Int32Metadata(stats.iterations));
+    g->insertMeta(meta::kResidual, openvdb::FloatMetadata(float(stats.residual)));
+    g->insertMeta(meta::kDirections, openvdb::Int32Metadata(stats.directions));
+    g->insertMeta(meta::kSeconds, openvdb::FloatMetadata(float(stats.seconds)));
+    g->insertMeta(meta::kVersion, openvdb::StringMetadata(VDBRAD_VERSION_STRING));
+    return g;
+}
+
+} // namespace
 
 openvdb::GridBase::Ptr
 solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
-    openvdb::FloatGrid::Ptr* ground)
+    openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity)
 {
+    if (options.surfaces && options.surfaces->isRgb()) {
+        if (ground) ground->reset();
+        return solveCloudRgb(cloud, options, interrupt, control, radiosity);
+    }
     CloudTransfer transfer(cloud, options, interrupt);
     const bool framed = interrupt && !control.beforeIteration;
     if (framed) interrupt->start("cloud transfer");
     iterateSolve(transfer, control, interrupt);
     if (framed) interrupt->end();
-    if (control.note) {
-        const CloudBudget& b = transfer.budget();
-        std::ostringstream os;
-        os << "albedo " << b.albedo << ", transmittance " << b.transmittance << " (direct "
-           << b.directTransmittance << "), absorptance " << b.absorptance;
-        if (options.groundAlbedo) os << ", reflected by the ground " << b.groundReflected;
-        os << "; balance " << b.balance();
-        control.note(os.str());
-    }
+    if (control.note) control.note(budgetLine(transfer.budget(), options));
     if (ground) *ground = transfer.groundGrid();
+    if (radiosity) {
+        radiosity->reset();
+        if (options.surfaces) {
+            *radiosity = makeRadiosityGrid(*options.surfaces, transfer.surfaceRadiosity(),
+                statsOf(transfer));
+        }
+    }
     return transfer.grid();
 }
 

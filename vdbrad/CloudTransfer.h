@@ -84,6 +84,7 @@
 #include "vdbrad/DirectionSet.h"
 #include "vdbrad/FixedPointIteration.h"
 #include "vdbrad/PhaseFunction.h"
+#include "vdbrad/Scene.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
@@ -156,12 +157,22 @@ struct CloudTransferOptions
     /// A Lambertian ground of this albedo (in [0, 1]) under the box, reflecting the light that
     /// reaches it back into the cloud (Ground.h); unset: none (light leaving downwards is gone).
     std::optional<double> groundAlbedo;
+    /// Surfaces inside the medium (FogSurfaces.h): the voxels of a surface scene on the
+    /// cloud's transform, swept with it; they stop light, reflect it (their albedo) and emit
+    /// (their emission: lamps). Not owned: it must outlive the transfer. Not with periodic
+    /// boundaries or a ground (model the ground as surface voxels).
+    const Scene* surfaces = nullptr;
+    /// The channel (0, 1, 2) of an RGB surface scene's albedo and emission solved; the medium
+    /// is grey, so solveCloud() solves an RGB scene channel by channel.
+    int surfaceChannel = 0;
 };
 
 /// Where the incident sunlight went, as fractions of the incident power (after the last sweep).
 struct CloudBudget
 {
-    double incident = 0.0;       ///< beam power entering the box (units of F0 x voxel face)
+    /// Beam power entering the box plus the power the surfaces emit (units of F0 x voxel
+    /// face); the fractions below are of it.
+    double incident = 0.0;
     double albedo = 0.0;         ///< leaving upwards
     /// Leaving downwards, direct beam included: onto the ground where there is one (its
     /// irradiance, every arrival counted), so with a ground it includes light reflected back
@@ -172,11 +183,16 @@ struct CloudBudget
     /// Reflected back up by the ground: its albedo times what reached it (0 without a ground);
     /// (1 - ground albedo) x what reached it is what the ground absorbed.
     double groundReflected = 0.0;
-    /// albedo + transmittance - groundReflected + absorptance - 1: the energy balance error
-    /// (the ground reflects what it does not absorb).
+    /// Emitted by the surfaces (CloudTransferOptions::surfaces), included in `incident`.
+    double emitted = 0.0;
+    /// Absorbed by the surfaces: (1 - their albedo) x what lands on their fronts, and all that
+    /// reaches their backs.
+    double surfaceAbsorptance = 0.0;
+    /// albedo + transmittance - groundReflected + absorptance + surfaceAbsorptance - 1: the
+    /// energy balance error (the ground reflects what it does not absorb).
     double balance() const
     {
-        return albedo + transmittance - groundReflected + absorptance - 1.0;
+        return albedo + transmittance - groundReflected + absorptance + surfaceAbsorptance - 1.0;
     }
 };
 
@@ -247,6 +263,14 @@ public:
     /// layer of voxels one below the box over its footprint (null without a ground).
     openvdb::FloatGrid::Ptr groundGrid(const std::string& name = "ground_irradiance") const;
 
+    /// @brief Radiosity B = P / A per surface voxel (CloudTransferOptions::surfaces, the
+    /// scene's numbering; FogSurfaces.h), in units of the beam irradiance's and the emission's;
+    /// empty without surfaces.
+    std::vector<float> surfaceRadiosity() const;
+    /// @brief Area A_v of each surface voxel as the lines see it, voxel faces (FogSurfaces.h);
+    /// empty without surfaces.
+    const std::vector<double>& surfaceArea() const;
+
     /// @brief The `mean_intensity` float grid on the cloud's transform, active on its voxels,
     /// with metadata vdbrad:albedo, vdbrad:transmittance, vdbrad:absorptance, vdbrad:iterations,
     /// vdbrad:residual, vdbrad:directions, vdbrad:seconds.
@@ -270,10 +294,14 @@ private:
 
 /// @brief Solve the transfer in @a cloud and return its `mean_intensity` grid (see grid()).
 /// @a control: checkpoints and reports (SolveControl); @a ground, if not null, gets the
-/// ground's irradiance (groundGrid(); null without a ground).
+/// ground's irradiance (groundGrid(); null without a ground); @a radiosity, if not null, the
+/// surfaces' `radiosity` grid (CloudTransferOptions::surfaces; null without). An RGB surface
+/// scene is solved channel by channel (the medium is grey): `mean_intensity` and `radiosity`
+/// are then vec3s grids (checkpoints refused).
 /// @throw as CloudTransfer's constructor and iterate(); as readCheckpoint(), writeCheckpoint()
 openvdb::GridBase::Ptr solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt = nullptr,
-    const SolveControl& control = SolveControl(), openvdb::FloatGrid::Ptr* ground = nullptr);
+    const SolveControl& control = SolveControl(), openvdb::FloatGrid::Ptr* ground = nullptr,
+    openvdb::GridBase::Ptr* radiosity = nullptr);
 
 } // namespace vdbrad

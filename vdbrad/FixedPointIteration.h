@@ -96,6 +96,8 @@ public:
     bool finished() const { return mIteration.finished(); }
     int iterationCount() const { return mIteration.iterationCount(); }
     const std::vector<double>& residuals() const { return mIteration.residuals(); }
+    /// Wall time spent setting up and iterating, seconds.
+    double seconds() const { return mIteration.seconds(); }
 
 protected:
     explicit IterativeSolver(FixedPointIteration iteration) : mIteration(std::move(iteration)) {}

@@ -32,6 +32,7 @@ struct Marcher
     bool periodic;
     const GroundLayer* ground;
     std::vector<std::atomic<int64_t>>& landed;   // per ground cell
+    const std::vector<uint8_t>* opaque;          // per voxel, or null
 
     // What is left of a ray that leaves the medium along d at point q (cell space), on the
     // ground cell under it (an open box's ray that leaves through a side meets the ground's
@@ -53,6 +54,11 @@ struct Marcher
         int64_t left = int64_t(kFixed);
         double kept = 1.0;   // transmittance so far, in double; deposits are its decrements
         auto take = [&](int32_t i, double tIn, double tOut) {
+            if (opaque && (*opaque)[size_t(i)]) {   // a surface: what is left lands on it
+                deposited[size_t(i)].fetch_add(left, std::memory_order_relaxed);
+                left = 0;
+                return false;
+            }
             const double after = kept * std::exp(-double(depth[size_t(i)]) * (tOut - tIn));
             // Fixed-point share of this voxel; a ray whose power is spent deposits the rest
             // here, so nothing is lost to rounding or underflow.
@@ -101,7 +107,8 @@ struct Marcher
 SolarBeamResult
 traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const Vec3d& toSun, int up, bool periodic, int raysPerVoxel, double irradiance,
-    openvdb::util::NullInterrupter* interrupt, const GroundLayer* ground)
+    openvdb::util::NullInterrupter* interrupt, const GroundLayer* ground,
+    const std::vector<uint8_t>* opaque)
 {
     if (up < 0 || up > 2) OPENVDB_THROW(openvdb::ValueError, "up axis must be 0, 1 or 2");
     if (opticalDepth.size() != voxels.size()) {
@@ -130,7 +137,7 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     if (ground && box.min()[up] <= ground->layer()) box.min()[up] = ground->layer() + 1;
     const Vec3d lo = box.min().asVec3d() - Vec3d(0.5), hi = box.max().asVec3d() + Vec3d(0.5);
     std::vector<std::atomic<int64_t>> deposited(n), landed(ground ? ground->size() : 0);
-    const Marcher marcher{opticalDepth, deposited, box, up, periodic, ground, landed};
+    const Marcher marcher{opticalDepth, deposited, box, up, periodic, ground, landed, opaque};
     const double spacing = 1.0 / raysPerVoxel;
 
     // The ray grid: on the top face (periodic), or on the plane normal to the beam over the

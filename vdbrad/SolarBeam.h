@@ -54,6 +54,8 @@ struct SolarBeamResult
 ///                     its plane, wrapped into the period if periodic, or nowhere if outside its
 ///                     footprint; @a voxels may hold the ground's layer (CloudTransfer sweeps
 ///                     it), which is not part of the medium's box
+/// @param opaque       if not null, per voxel: nonzero for a surface (FogSurfaces.h), where a
+///                     ray that reaches it leaves all its power (in `deposited`) and ends
 /// @throw openvdb::ValueError for invalid arguments; vdbrad::Cancelled if @a interrupt asks
 /// @brief The unit direction towards the sun in @a transform's index space, from its zenith
 /// angle (from the @a up axis) and azimuth (from the first horizontal axis towards the second:
@@ -65,6 +67,6 @@ openvdb::Vec3d sunDirection(double zenith, double azimuth, int up,
 SolarBeamResult traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const openvdb::Vec3d& toSun, int up, bool periodic, int raysPerVoxel = 2,
     double irradiance = 1.0, openvdb::util::NullInterrupter* interrupt = nullptr,
-    const GroundLayer* ground = nullptr);
+    const GroundLayer* ground = nullptr, const std::vector<uint8_t>* opaque = nullptr);
 
 } // namespace vdbrad
