@@ -624,7 +624,26 @@ cornell(const BuildParams& in)
                 v.wall == Wall::Left ? red : v.wall == Wall::Right ? green : white);
         }
     }
-    return s.finish(scene, vs, albedo);
+    openvdb::GridPtrVec grids = s.finish(scene, vs, albedo);
+    if (p.tau > 0.f) {
+        // A uniform fog in the room's air, of optical depth tau across its width (x).
+        auto density = FloatGrid::create(0.f);
+        const float sigma = float(p.tau / room.X);
+        auto acc = density->getAccessor();
+        for (int i = 0; i <= iMax; ++i) {
+            for (int j = 0; j <= jMax; ++j) {
+                for (int k = 0; k <= kMax; ++k) {
+                    if (room.air(centre(i, j, k))) acc.setValue(Coord(i, j, k), sigma);
+                }
+            }
+        }
+        density->setGridClass(openvdb::GRID_FOG_VOLUME);
+        tag(*density, "density", scene, makeTransform(vs));
+        grids.push_back(density);
+    } else if (p.tau < 0.f) {
+        fail(scene, "tau " + str(p.tau) + " must be >= 0");
+    }
+    return grids;
 }
 
 // ---- slab --------------------------------------------------------------------------------------
@@ -871,7 +890,8 @@ builders()
             "radiosity E F, F = 0.41525 (parallel squares)", makePlates},
         {"lamp", "square emitter of half-side r=0.05 facing down at h=0.25 over a unit floor of "
             "albedo 0.5: floor radiosity rho E F(point -> square), Howell B-3", makeLamp},
-        {"cornell", "Cornell box (metres, RGB albedo, ceiling light); no closed-form answer",
+        {"cornell", "Cornell box (metres, RGB albedo, ceiling light); with tau > 0 a uniform "
+            "fog of optical depth tau across its width (`density`); no closed-form answer",
             makeCornell},
         {"slab", "homogeneous cloud slab 1 x 0.25 x 1, vertical optical thickness tau = 10, "
             "albedo 1; periodic in x and z", makeSlab},

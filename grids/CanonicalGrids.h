@@ -29,7 +29,8 @@ struct BuildParams
     float radius = -1.f;     ///< disk: emitter radius (world units)
     float height = -1.f;     ///< disk, plates: distance between emitter and receiver (world units)
     float tau = -1.f;        ///< slab: vertical optical thickness; cumulus: optical diameter;
-                             ///< step-cloud: the thick columns' thickness
+                             ///< step-cloud: the thick columns' thickness; cornell: the fog's
+                             ///< optical depth across the room
     unsigned seed = 1;       ///< cumulus: random seed of the procedural shape
 };
 
@@ -70,7 +71,9 @@ openvdb::GridPtrVec makeLamp(const BuildParams&);
 /// red (left, x = 0.556) and green (right, x = 0) walls, the short and tall blocks and the ceiling
 /// light (0.213..0.343 x 0.227..0.332), emission E (default 1, grey). RGB albedo grid:
 /// white (0.73, 0.73, 0.73), red (0.63, 0.065, 0.05), green (0.14, 0.45, 0.091).
-/// Surface voxels: solid voxels with a 26-neighbour in the room's air.
+/// Surface voxels: solid voxels with a 26-neighbour in the room's air. With tau > 0 (default 0:
+/// none) a fog-volume `density` grid fills the air voxels, extinction tau / 0.556 per metre
+/// (optical depth tau across the room's width): the foggy Cornell box.
 /// No closed-form answer; used for colour bleeding, speed and the trade study.
 openvdb::GridPtrVec makeCornell(const BuildParams&);
 

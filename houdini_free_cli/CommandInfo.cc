@@ -143,14 +143,21 @@ runInfo(const Arguments& a)
     }
     if (roles.density) {
         try {
-            const Cloud cloud = buildCloud(file.grids);
+            // With a surface in the file, `albedo` is the surfaces' (solve-cloud solves both).
+            CloudOptions cloudOpts;
+            cloudOpts.albedoGrid = !roles.surface;
+            const Cloud cloud = buildCloud(file.grids, cloudOpts);
             float lo = std::numeric_limits<float>::max(), hi = 0.f;
             for (float s : cloud.extinctionArray()) { lo = std::min(lo, s); hi = std::max(hi, s); }
             std::cout << "  cloud:     " << withCommas(cloud.size()) << " medium voxels from '"
                       << cloud.densityName() << "', extinction in [" << lo << ", " << hi
                       << "] per world unit, max optical depth per voxel "
                       << hi * cloud.voxelSize() << "\n";
-            std::cout << "  cloud albedo: " << describeAttribute(cloud.albedo(), "none: 1") << "\n";
+            std::cout << "  cloud albedo: " << describeAttribute(cloud.albedo(), roles.surface
+                ? "none: 1 (`albedo` is the surfaces'; solve-cloud --albedo)" : "none: 1") << "\n";
+            if (roles.surface) {
+                std::cout << "  fog in a surface scene: `vdbrad solve-cloud` solves both\n";
+            }
         } catch (const std::exception& e) {
             report("cloud:    ", e);
         }

@@ -1,4 +1,5 @@
-// `vdbrad solve-cloud`: the light in a fog volume lit by the sun (CloudTransfer).
+// `vdbrad solve-cloud`: the light in a fog volume lit by the sun (CloudTransfer), with the
+// surfaces of a scene in the same file (FogSurfaces.h).
 #include "Commands.h"
 #include "Progress.h"
 #include "SolveSupport.h"
@@ -6,6 +7,8 @@
 
 #include "vdbrad/CloudTransfer.h"
 #include "vdbrad/DirectionSet.h"
+#include "vdbrad/GridContract.h"
+#include "vdbrad/Scene.h"
 #include "vdbrad/vdbrad.h"
 
 #include <cstdlib>
@@ -87,19 +90,39 @@ runSolveCloud(const Arguments& a)
     const VdbFile& file = session.file();
     const std::string& label = session.label();
     ProgressInterrupter& progress = session.progress();
+    // A surface scene in the same file (a level set or `normal` grid) is solved with the fog
+    // (unless --no-surfaces); its `albedo` grid is the surfaces', not the fog's.
+    const bool hasSurface = forFile(label, [&] {
+        return bool(identifyRoles(file.grids).surface);
+    });
+    const bool withSurfaces = hasSurface && !a.flag("no-surfaces");
+    cloudOpts.albedoGrid = !hasSurface;
+    Scene scene;
+    if (withSurfaces) {
+        SceneOptions sceneOpts;
+        sceneOpts.defaultAlbedo = float(a.getFloat("surface-albedo"));
+        scene = forFile(label, [&] { return buildScene(file.grids, sceneOpts, &progress); });
+        o.surfaces = &scene;
+        if (o.periodic || o.groundAlbedo) {
+            throw UsageError("a file with surfaces is solved in an open box without "
+                "--ground-albedo (give the ground as surface voxels; or --no-surfaces)");
+        }
+    }
     const Cloud cloud = forFile(label, [&] {
         return buildCloud(file.grids, cloudOpts, &progress);
     });
     const std::string memory = checkMemory(a, label,
-        residentBytes(double(fileBytes(file) + cloud.memUsage())),
+        residentBytes(double(fileBytes(file) + cloud.memUsage() + scene.memUsage())),
         double(CloudTransfer::memoryEstimate(cloud, o, workerThreads())));
     openvdb::FloatGrid::Ptr ground;
+    openvdb::GridBase::Ptr radiosity;
     const openvdb::GridBase::Ptr intensity = forFile(label, [&] {
-        return solveCloud(cloud, o, &progress, session.control(memory), &ground);
+        return solveCloud(cloud, o, &progress, session.control(memory), &ground, &radiosity);
     });
     intensity->setName(name);
     openvdb::GridPtrVec outputs{intensity};
     if (ground) outputs.push_back(ground);
+    if (radiosity) outputs.push_back(radiosity);
     session.finish(outputs, out, o.maxIterations);
     return 0;
 }

@@ -223,8 +223,10 @@ commands()
                 "vdbrad solve scene.vdb out.vdb --lines standard --tolerance 1e-4"},
             runSolve},
         {"solve-cloud", "IN OUT", 2, 2,
-            "solve the light in a fog volume (`density` grid) lit by the sun; writes the input's "
-            "grids plus the mean radiance `mean_intensity`",
+            "solve the light in a fog volume (`density` grid) lit by the sun and by the surfaces "
+            "of a scene in the same file (a level set or `normal` grid, its `albedo` and "
+            "`emission`: a foggy room lit by its lamps); writes the input's grids plus the mean "
+            "radiance `mean_intensity` (and the surfaces' `radiosity`)",
             {{"sun", OptionType::String, "0,0", "60,30",
                     "sun zenith angle from the up axis, in [0, 89.9], and azimuth, degrees"},
                 OptionSpec{"up", OptionType::String, "y", "z",
@@ -268,6 +270,11 @@ commands()
                     "--periodic the whole plane) reflecting light back into the cloud; writes "
                     "its irradiance as `ground_irradiance`, one layer of voxels below the box. "
                     "Default: none (light leaving downwards is gone)"}.within(0, 1),
+                OptionSpec{"surface-albedo", OptionType::Float, "0.5", "0.7",
+                    "albedo of the surfaces where the file has a surface but no `albedo` "
+                    "grid"}.within(0, 1),
+                {"no-surfaces", OptionType::Flag, "", "",
+                    "ignore a surface scene in the file: solve the fog alone"},
                 {"directions", OptionType::String, "auto", "1000",
                     "direction pairs swept per iteration (the nearest count a discrete sphere "
                     "gives is used); auto: for a phase function of asymmetry |g| > 0.5 (its "
@@ -282,6 +289,7 @@ commands()
                     "name of the output grid (e.g. `scatter` for Houdini volume shaders)"},
                 kOverwrite, kQuiet},
             {"vdbrad make cumulus - | vdbrad solve-cloud - lit.vdb --sun 40,0",
+                "vdbrad make cornell --tau 1 - | vdbrad solve-cloud - foggy.vdb --irradiance 0",
                 "vdbrad solve-cloud slab.vdb out.vdb --periodic --sun 60,0 --albedo 0"},
             runSolveCloud},
         {"render", "IN OUT.exr", 2, 2,

@@ -750,3 +750,55 @@ TEST_F(CliTest, InterruptedSolveExitsCleanlyWithoutOutput)
     EXPECT_EQ(std::system(("ls -a '" + mDir + "' | grep -q vdbrad-").c_str()) == 0, false)
         << "a temporary file was left behind";
 }
+
+// A fog inside a surface scene (thesis §6.3.1): `make cornell --tau` writes the room and its fog
+// in one file, solve-cloud solves both (RGB walls: channel by channel), balances each channel
+// to 1e-4 and writes `radiosity` beside `mean_intensity`, and render draws both.
+TEST_F(CliTest, FoggyCornellBoxSolvesBalancesAndRenders)
+{
+    ASSERT_EQ(sh("vdbrad make cornell --res 16 --tau 1 room.vdb").status, 0);
+    const Result solved = sh("vdbrad solve-cloud room.vdb lit.vdb --irradiance 0 "
+                             "--directions 100");
+    ASSERT_EQ(solved.status, 0) << solved.err;
+    EXPECT_NE(solved.err.find("surface voxels (channel 2)"), std::string::npos) << solved.err;
+    int channels = 0;
+    for (const std::string& line : solved.errLines()) {
+        const size_t at = line.find("; balance ");
+        if (line.rfind("channel ", 0) != 0 || at == std::string::npos) continue;
+        ++channels;
+        EXPECT_LT(std::abs(std::stod(line.substr(at + 10))), 1e-4) << line;
+    }
+    EXPECT_EQ(channels, 3) << solved.err;
+    const VdbFile f = readVdbFile(path("lit.vdb"));
+    const openvdb::GridBase::ConstPtr B = findGrid(f.grids, "radiosity");
+    const openvdb::GridBase::ConstPtr J = findGrid(f.grids, "mean_intensity");
+    ASSERT_TRUE(B && J);
+    EXPECT_EQ(B->valueType(), "vec3s");
+    EXPECT_EQ(J->valueType(), "vec3s");
+    EXPECT_EQ(B->activeVoxelCount(), findGrid(f.grids, "normal")->activeVoxelCount());
+    EXPECT_EQ(J->activeVoxelCount(), findGrid(f.grids, "density")->activeVoxelCount());
+    // The red wall is redder than the green one.
+    const auto rgb = openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(B);
+    openvdb::Vec3d left(0.0), right(0.0);
+    for (auto it = rgb->cbeginValueOn(); it; ++it) {
+        if (it.getCoord().x() >= 15) left += openvdb::Vec3d(*it);
+        if (it.getCoord().x() <= 0) right += openvdb::Vec3d(*it);
+    }
+    EXPECT_GT(left[0] / left[1], 2.0 * right[0] / right[1]);
+    const Result rendered = sh("vdbrad render lit.vdb room.exr --res 64x64 --png room.png");
+    ASSERT_EQ(rendered.status, 0) << rendered.err;
+    EXPECT_TRUE(exists(path("room.png")));
+    // Surfaces need an open box without a ground; an RGB scene cannot be checkpointed.
+    for (const char* bad : {"--periodic", "--ground-albedo 0.4", "--checkpoint c.ckpt"}) {
+        const Result r = sh(std::string("vdbrad solve-cloud room.vdb x.vdb --irradiance 0 ")
+            + bad);
+        EXPECT_NE(r.status, 0) << bad;
+        EXPECT_EQ(r.errLines().size(), 1u) << bad << ": " << r.err;
+        EXPECT_FALSE(exists(path("x.vdb"))) << bad;
+    }
+    // --no-surfaces: the fog alone.
+    const Result alone = sh("vdbrad solve-cloud room.vdb fog.vdb --no-surfaces --directions 50 "
+                            "--iterations 2");
+    ASSERT_EQ(alone.status, 0) << alone.err;
+    EXPECT_FALSE(findGrid(readVdbFile(path("fog.vdb")).grids, "radiosity"));
+}

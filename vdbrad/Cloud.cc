@@ -35,7 +35,8 @@ buildCloud(const openvdb::GridPtrVec& grids, const CloudOptions& options,
         OPENVDB_THROW(openvdb::ValueError, "albedo must be in [0, 1], got "
             << options.defaultAlbedo);
     }
-    const GridRoles roles = identifyRoles(grids, "", options.density);
+    GridRoles roles = identifyRoles(grids, "", options.density);
+    if (!options.albedoGrid) roles.albedo.reset();
     if (!roles.density) {
         OPENVDB_THROW(openvdb::KeyError, "no cloud: expected a float grid named '"
             << options.density << "'");

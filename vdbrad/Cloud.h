@@ -22,6 +22,9 @@ struct CloudOptions
     std::string density = names::kDensity;  ///< name of the density grid
     float extinctionScale = 1.f;            ///< multiplies density, > 0 and finite
     float defaultAlbedo = 1.f;              ///< omega0 where no `albedo` grid, in [0, 1]
+    /// Read omega0 from the `albedo` grid if there is one; false where that grid is a surface
+    /// scene's (a fog inside surfaces, CloudTransferOptions::surfaces): defaultAlbedo then.
+    bool albedoGrid = true;
 };
 
 class Cloud

@@ -1409,7 +1409,7 @@ budgetLine(const CloudBudget& b, const CloudTransferOptions& options)
        << b.directTransmittance << "), absorptance " << b.absorptance;
     if (options.groundAlbedo) os << ", reflected by the ground " << b.groundReflected;
     if (options.surfaces) {
-        os << ", emitted by the surfaces " << b.emitted << ", absorbed by them "
+        os << " (left the box), emitted by the surfaces " << b.emitted << ", absorbed by them "
            << b.surfaceAbsorptance;
     }
     os << "; balance " << b.balance();
