@@ -184,9 +184,13 @@ TEST_F(FogSurfacesTest, FogFreeCornellAgreesWithMonteCarlo)
     ro.direct = DirectMode::Sweep;
     const auto swept = openvdb::gridPtrCast<openvdb::Vec3SGrid>(solveRadiosity(scene, ro));
     ASSERT_TRUE(swept);
-    const openvdb::CoordBBox box = scene.voxels().bbox();
-    const Cloud air = fog(scene.transform(),
-        openvdb::CoordBBox(box.min() + Coord(1), box.max() - Coord(1)), 1e-6, 1.f);
+    // The room's air as a clear fog (make cornell --tau: not inside the blocks).
+    p.tau = 1e-6f;
+    Cloud air;
+    for (const openvdb::GridBase::Ptr& grid : grids::makeCornell(p)) {
+        if (grid->getName() == "density") air = buildCloud({grid});
+    }
+    ASSERT_GT(air.size(), 0u);
     CloudTransferOptions o;
     o.surfaces = &scene;
     o.irradiance = 0.0;
@@ -211,12 +215,13 @@ TEST_F(FogSurfacesTest, FogFreeCornellAgreesWithMonteCarlo)
         walls[key].swept += openvdb::Vec3d(scc.getValue(c));
         walls[key].mc += openvdb::Vec3d(mcc.getValue(c));
     }
-    // Measured (res 32, 300 directions): the transfer -0.4 % to -19 % wall by wall, the surface
-    // solver -0.5 % to -9 %; both low where the small lamp's light reaches through few
-    // directions (the surface solver's exact direct light is within 2.5 %: not yet in fog).
+    // Measured (res 32, 300 directions): the transfer -0.3 % to -14 % wall by wall (12.7 % mean
+    // over the voxels), the surface solver -0.5 % to -9 % (9.7 %); both low where the small
+    // lamp's light reaches through few directions (the surface solver's exact direct light is
+    // within 2.5 %: not yet in fog).
     for (const auto& [key, sums] : walls) {
         for (int ch = 0; ch < 3; ++ch) {
-            EXPECT_NEAR(sums.fog[ch] / sums.mc[ch], 1.0, 0.21) << "wall " << key << " " << ch;
+            EXPECT_NEAR(sums.fog[ch] / sums.mc[ch], 1.0, 0.16) << "wall " << key << " " << ch;
             EXPECT_NEAR(sums.swept[ch] / sums.mc[ch], 1.0, 0.11) << "wall " << key << " " << ch;
         }
     }
@@ -271,4 +276,57 @@ TEST_F(FogSurfacesTest, RefusesWhatItCannotSolve)
     EXPECT_THROW(CloudTransfer(shifted, o), openvdb::ValueError);
     o.surfaceChannel = 1;   // a grey scene has one channel
     EXPECT_THROW(CloudTransfer(f.cloud, o), openvdb::ValueError);
+}
+// The closed sphere (grids::makeFurnaceSphere: curved walls, staircase normals) filled with a
+// conservative fog: energy balances exactly; a staircase voxel met from the fog takes the light
+// whatever its normal says, but some lines still reach a voxel's back past a digital corner or
+// leave through the shell, so the walls fall a little short of the furnace's E / (1 - rho):
+// measured at res 24, mean -1.2 %, voxels -16.7 % to -0.2 %, 0.23 % leaving the sphere (where
+// the flat box is exact to 0.6 %). Before the fog side decided, backs took 3.5 %.
+TEST_F(FogSurfacesTest, ClosedSphereFurnaceIsCloseToExact)
+{
+    grids::BuildParams p;
+    p.res = 24;
+    const Scene scene = buildScene(grids::makeFurnaceSphere(p));
+    const openvdb::CoordBBox shell = scene.voxels().bbox();
+    // Fog in the cells inside the shell: flood from the centre, stopping at surface voxels.
+    openvdb::FloatGrid::Ptr density = openvdb::FloatGrid::create(0.f);
+    density->setName("density");
+    density->setTransform(scene.transform().copy());
+    density->setGridClass(openvdb::GRID_FOG_VOLUME);
+    {
+        auto acc = density->getAccessor();
+        const Coord mid = shell.min() + shell.max(); std::vector<Coord> todo{Coord(mid.x() / 2, mid.y() / 2, mid.z() / 2)};
+        acc.setValue(todo[0], 1.f);
+        while (!todo.empty()) {
+            const Coord c = todo.back();
+            todo.pop_back();
+            for (int k = 0; k < 6; ++k) {
+                Coord q = c;
+                q[k / 2] += k % 2 ? 1 : -1;
+                if (!shell.isInside(q) || acc.isValueOn(q) || scene.voxels().find(q) >= 0) continue;
+                acc.setValue(q, 1.f);
+                todo.push_back(q);
+            }
+        }
+    }
+    CloudOptions co;
+    const Cloud cloud = buildCloud({density}, co);
+    CloudTransferOptions o;
+    o.surfaces = &scene;
+    o.irradiance = 0.0;
+    CloudTransfer t(cloud, o);
+    t.solve();
+    const std::vector<float> B = t.surfaceRadiosity();
+    double sum = 0.0, area = 0.0;
+    for (size_t v = 0; v < B.size(); ++v) {
+        ASSERT_GT(B[v], 2.0 * (1.0 - 0.175)) << v;
+        ASSERT_LT(B[v], 2.0) << v;
+        sum += B[v] * t.surfaceArea()[v];
+        area += t.surfaceArea()[v];
+    }
+    EXPECT_NEAR(sum / area, 2.0 * (1.0 - 0.012), 2.0 * 0.004);
+    const CloudBudget& b = t.budget();
+    EXPECT_NEAR(b.balance(), 0.0, 1e-5);
+    EXPECT_LT(b.albedo + b.transmittance, 0.003);
 }

@@ -49,6 +49,7 @@ struct Ray
     bool pending = false;      // `last` is not finished yet
     bool hasBefore = false;    // the voxel before `last` on the line is its neighbour
     bool receiving = false;    // `last` is a surface voxel that took the line's light
+    bool medium = false;       // `last` is a medium voxel
     uint32_t run = FogSurfaces::kNone;   // the surface voxel `last` if it sends light along the line
     uint32_t last = 0;
     // A linear source only: last's source (total, higher moments, beam), the one before it's.
@@ -115,15 +116,19 @@ rowTimesMatrix(const float* a, const float* b, size_t H, size_t stride, size_t w
 // A line in sense t meets surface voxel v, t.n_v = c != 0 (FogSurfaces.h), @a adjacent if v
 // is the neighbour on the line of the voxel before it. A run of senders ends before a receiver
 // and before a sender that is not its neighbour, sending @a sent(u) (the radiance leaving its
-// last voxel u); a sender not continuing a run absorbs with its back what comes from behind
-// (into @a backs, times @a etendue). Returns whether v is the first of a run of receivers: it
-// then takes the line's radiance (the caller lands it) and the line goes on dark.
+// last voxel u). A sender that does not continue a run takes what comes in from the medium
+// voxel just before it (the fog is on its front side, whatever its normal says at a digital
+// edge) and otherwise absorbs with its back what comes from behind (into @a backs, times
+// @a etendue). Returns whether v takes the line's radiance (the caller lands it; the line then
+// goes on dark): the first of a run of receivers, or a sender right after the medium.
 template<typename SentT>
 inline bool
 meetSurface(Ray& ray, uint32_t v, double c, bool adjacent, double etendue, SentT&& sent,
     double& backs)
 {
     const bool inRun = ray.run != FogSurfaces::kNone;
+    const bool afterMedium = ray.medium && adjacent;
+    ray.medium = false;
     if (c > 0.0 && inRun && adjacent) {
         ray.run = v;
         return false;
@@ -131,10 +136,11 @@ meetSurface(Ray& ray, uint32_t v, double c, bool adjacent, double etendue, SentT
     if (inRun) ray.radiance = sent(ray.run);
     ray.run = FogSurfaces::kNone;
     if (c > 0.0) {
-        backs += double(ray.radiance) * etendue;
-        ray.radiance = 0.f;
         ray.run = v;
         ray.receiving = false;
+        if (afterMedium) return true;
+        backs += double(ray.radiance) * etendue;
+        ray.radiance = 0.f;
         return false;
     }
     const bool first = inRun || !(ray.receiving && adjacent);
@@ -670,8 +676,16 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
     double& backs = sw.backs[size_t(g)];
     bool sending = true;
     auto sent = [&](uint32_t u) { return sending ? float(sw.surfaceEmits[u]) : 0.f; };
-    auto endRun = [&](Ray& ray) {
-        if (ray.run != FogSurfaces::kNone) ray.radiance = sent(ray.run);
+    // The line leaves surfaces: a run of senders sends; so does a receiver that the medium
+    // voxel @a x (null: the line's end) follows right after (the mirror of a sender taking
+    // what comes from the medium just before it).
+    auto endRun = [&](Ray& ray, const uint32_t* x) {
+        if (ray.run != FogSurfaces::kNone) {
+            ray.radiance = sent(ray.run);
+        } else if (ray.receiving && x && std::abs(pattern.sweep->coord(*x)[major]
+                       - pattern.sweep->coord(ray.last)[major]) == 1) {
+            ray.radiance = sent((*surfaceP)[ray.last]);
+        }
         ray.run = FogSurfaces::kNone;
         ray.receiving = false;
     };
@@ -778,7 +792,8 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                         visitSurface(ray, x, v, forward);
                         return;
                     }
-                    endRun(ray);
+                    endRun(ray, &x);
+                    ray.medium = true;
                 }
                 const float* y = yAcc[sense];
                 // The source: its isotropic part s0, its higher moments' part r and the beam's
@@ -823,7 +838,7 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                         if (ray.run != FogSurfaces::kNone && enclosed[ray.run]) {
                             ray.run = FogSurfaces::kNone;
                         }
-                        endRun(ray);
+                        endRun(ray, nullptr);
                     }
                     // (An isolated line's tube has no cross-section: nothing leaves it.)
                     if (!ray.started || ray.radiance == 0.f || line.isolated) continue;
@@ -883,6 +898,7 @@ CloudTransfer::Impl::surfaceAreas() const
                     if (v == FogSurfaces::kNone) {
                         ray.run = FogSurfaces::kNone;
                         ray.receiving = false;
+                        ray.medium = true;
                     } else {
                         const double c = (forward ? 1.0 : -1.0)
                             * line.unit.dot(Vec3d(surfaces->normal(v)));
