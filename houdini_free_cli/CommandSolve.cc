@@ -87,6 +87,10 @@ runSolve(const Arguments& a)
         return buildScene(file.grids, sceneOpts, &progress);
     });
     if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+    if (findGrid(file.grids, names::kDensity)) {
+        warn(label, "the fog ('density') is not part of this solve: `vdbrad solve-cloud` solves "
+            "the surfaces and the fog together");
+    }
     if (method == "montecarlo") {
         mc.gather = gather;
         session.finish(solveMonteCarlo(scene, mc, &progress, session.control("")), out,

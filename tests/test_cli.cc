@@ -796,6 +796,11 @@ TEST_F(CliTest, FoggyCornellBoxSolvesBalancesAndRenders)
         EXPECT_EQ(r.errLines().size(), 1u) << bad << ": " << r.err;
         EXPECT_FALSE(exists(path("x.vdb"))) << bad;
     }
+    // `solve` sees the walls only, and says where the fog is solved.
+    const Result walls = sh("vdbrad solve room.vdb walls.vdb --directions 50 --iterations 1");
+    ASSERT_EQ(walls.status, 0) << walls.err;
+    EXPECT_NE(walls.err.find("`vdbrad solve-cloud` solves the surfaces and the fog"),
+        std::string::npos) << walls.err;
     // --no-surfaces: the fog alone.
     const Result alone = sh("vdbrad solve-cloud room.vdb fog.vdb --no-surfaces --directions 50 "
                             "--iterations 2");
