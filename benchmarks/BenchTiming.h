@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <chrono>
 #include <functional>
+#include <memory>
+#include <utility>
 
 #include <sys/resource.h>
 
@@ -49,6 +51,20 @@ spent(F&& f)
     f();
     return {processCpuSeconds() - cpu0,
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()};
+}
+
+/// A solver made from @a args and solved to its tolerance or cap, with the CPU and wall seconds
+/// that took, its setup included, in @a took.
+template<typename SolverT, typename... ArgsT>
+inline std::unique_ptr<SolverT>
+solved(Spent& took, ArgsT&&... args)
+{
+    std::unique_ptr<SolverT> solver;
+    took = spent([&] {
+        solver.reset(new SolverT(std::forward<ArgsT>(args)...));
+        solver->solve();
+    });
+    return solver;
 }
 
 } // namespace bench

@@ -86,11 +86,8 @@ main(int argc, char** argv)
         o.sunZenith = zenith;
         o.phase = vdbrad::PhaseFunction::henyeyGreenstein(g);
         if (grounded) o.groundAlbedo = groundAlbedo;
-        std::unique_ptr<vdbrad::CloudTransfer> solved;
-        const vdbrad::bench::Spent spent = vdbrad::bench::spent([&] {
-            solved.reset(new vdbrad::CloudTransfer(cloud, o));
-            solved->solve();
-        });
+        vdbrad::bench::Spent spent;
+        const auto solved = vdbrad::bench::solved<vdbrad::CloudTransfer>(spent, cloud, o);
         const vdbrad::CloudTransfer& transfer = *solved;
         const double cpu = spent.cpu, wall = spent.wall;
         const vdbrad::CloudBudget& b = transfer.budget();

@@ -113,6 +113,22 @@ rowTimesMatrix(const float* a, const float* b, size_t H, size_t stride, size_t w
 
 } // namespace
 
+// Whether positions @a x and @a y of @a sweep's order are neighbours on a naive line of major
+// axis @a major: one step apart along it, no gap between them.
+template<typename SweepT>
+inline bool
+lineNeighbours(const SweepT& sweep, int major, uint32_t x, uint32_t y)
+{
+    return std::abs(sweep.coord(x)[major] - sweep.coord(y)[major]) == 1;
+}
+
+// t . n for the sense (forward: along @a unit) a line is swept in.
+inline double
+senseCosine(const Vec3d& unit, bool forward, const openvdb::Vec3f& n)
+{
+    return (forward ? 1.0 : -1.0) * unit.dot(Vec3d(n));
+}
+
 // A line in sense t meets surface voxel v, t.n_v = c != 0 (FogSurfaces.h), @a adjacent if v
 // is the neighbour on the line of the voxel before it. A run of senders ends before a receiver
 // and before a sender that is not its neighbour, sending @a sent(u) (the radiance leaving its
@@ -228,7 +244,7 @@ struct CloudTransfer::Impl
         std::array<std::array<double, 2>, SweepSchedule::kGroups> escaped{};
         std::vector<double> leftNow;
         std::array<std::vector<double>, SweepSchedule::kGroups> landed;
-        // Surfaces: per surface voxel P_v / Z_v (what it sends), and per group what lands on
+        // Surfaces: per surface voxel B_v / Z_v (the radiance it sends), and per group what lands on
         // each one's front and what reaches their backs.
         const std::vector<double>& surfaceEmits;
         std::array<std::vector<double>, SweepSchedule::kGroups> onSurface;
@@ -682,18 +698,16 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
     auto endRun = [&](Ray& ray, const uint32_t* x) {
         if (ray.run != FogSurfaces::kNone) {
             ray.radiance = sent(ray.run);
-        } else if (ray.receiving && x && std::abs(pattern.sweep->coord(*x)[major]
-                       - pattern.sweep->coord(ray.last)[major]) == 1) {
+        } else if (ray.receiving && x && lineNeighbours(*pattern.sweep, major, *x, ray.last)) {
             ray.radiance = sent((*surfaceP)[ray.last]);
         }
         ray.run = FogSurfaces::kNone;
         ray.receiving = false;
     };
     auto visitSurface = [&](Ray& ray, uint32_t x, uint32_t v, bool forward) {
-        const double c = (forward ? 1.0 : -1.0) * unit.dot(Vec3d(surfaces->normal(v)));
+        const double c = senseCosine(unit, forward, surfaces->normal(v));
         if (c == 0.0) return;
-        const bool adjacent = std::abs(pattern.sweep->coord(x)[major]
-            - pattern.sweep->coord(ray.last)[major]) == 1;
+        const bool adjacent = lineNeighbours(*pattern.sweep, major, x, ray.last);
         if (meetSurface(ray, v, c, adjacent, etendue, sent, backs)) {
             (*onSurface)[v] += double(ray.radiance) * etendue;
             ray.radiance = 0.f;
@@ -809,8 +823,7 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                     bool adjacent = false;
                     if (ray.pending) {
                         // Neighbours along the line: one step apart on its major axis (no gap).
-                        adjacent = std::abs(pattern.sweep->coord(x)[major]
-                            - pattern.sweep->coord(ray.last)[major]) == 1;
+                        adjacent = lineNeighbours(*pattern.sweep, major, x, ray.last);
                         finish(lin, ray, ray.s, ray.r, ray.b, sense, adjacent ? &s : nullptr);
                         ray.before = ray.s;
                     }
@@ -900,11 +913,10 @@ CloudTransfer::Impl::surfaceAreas() const
                         ray.receiving = false;
                         ray.medium = true;
                     } else {
-                        const double c = (forward ? 1.0 : -1.0)
-                            * line.unit.dot(Vec3d(surfaces->normal(v)));
+                        const double c = senseCosine(line.unit, forward, surfaces->normal(v));
                         if (c == 0.0) return;
-                        const bool adjacent = ray.started && std::abs(pattern.sweep->coord(x)[major]
-                            - pattern.sweep->coord(ray.last)[major]) == 1;
+                        const bool adjacent = ray.started
+                            && lineNeighbours(*pattern.sweep, major, x, ray.last);
                         // A line's first voxel receives from outside the box: not where it
                         // faces a closed cavity (the mirror of the sweep's rule at line ends).
                         if (meetSurface(ray, v, c, adjacent, etendue, none, backs)
@@ -1432,6 +1444,17 @@ budgetLine(const CloudBudget& b, const CloudTransferOptions& options)
     return os.str();
 }
 
+// iterateSolve(), framed as one progress step unless @a control reports each iteration.
+void
+iterateFramed(CloudTransfer& transfer, const SolveControl& control,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    const bool framed = interrupt && !control.beforeIteration;
+    if (framed) interrupt->start("cloud transfer");
+    iterateSolve(transfer, control, interrupt);
+    if (framed) interrupt->end();
+}
+
 SolveStats
 statsOf(const CloudTransfer& transfer)
 {
@@ -1463,10 +1486,7 @@ solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
         CloudTransferOptions o = options;
         o.surfaceChannel = c;
         CloudTransfer transfer(cloud, o, interrupt);
-        const bool framed = interrupt && !control.beforeIteration;
-        if (framed) interrupt->start("cloud transfer");
-        iterateSolve(transfer, control, interrupt);
-        if (framed) interrupt->end();
+        iterateFramed(transfer, control, interrupt);
         const CloudBudget& b = transfer.budget();
         if (control.note) control.note("channel " + std::string(1, "rgb"[c]) + ": " + budgetLine(b, o));
         const std::vector<float> j = transfer.meanIntensity(), r = transfer.surfaceRadiosity();
@@ -1508,10 +1528,7 @@ solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
         return solveCloudRgb(cloud, options, interrupt, control, radiosity);
     }
     CloudTransfer transfer(cloud, options, interrupt);
-    const bool framed = interrupt && !control.beforeIteration;
-    if (framed) interrupt->start("cloud transfer");
-    iterateSolve(transfer, control, interrupt);
-    if (framed) interrupt->end();
+    iterateFramed(transfer, control, interrupt);
     if (control.note) control.note(budgetLine(transfer.budget(), options));
     if (ground) *ground = transfer.groundGrid();
     if (radiosity) {
