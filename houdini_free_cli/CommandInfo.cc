@@ -133,6 +133,13 @@ runInfo(const Arguments& a)
                 ("none: uniform " + std::to_string(options.defaultAlbedo) + " (--albedo)").c_str())
                       << "\n";
             std::cout << "  emission:  " << describeAttribute(scene.emission(), "none") << "\n";
+            if (scene.isGlossy()) {
+                std::cout << "  specular:  " << describeAttribute(scene.specular(), "none")
+                          << " (glossy lobes)\n";
+                std::cout << "  roughness: " << describeAttribute(scene.roughness(),
+                    ("none: uniform " + std::to_string(options.defaultRoughness)
+                        + " (--roughness)").c_str()) << "\n";
+            }
             std::cout << "  solution:  " << (scene.isRgb() ? "RGB" : "grey") << " radiosity\n";
             if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
         } catch (const std::exception& e) {
@@ -180,7 +187,8 @@ runInfo(const Arguments& a)
         std::cout << "  radiosity: " << result->valueType() << ", values in [" << lo << ", " << hi
                   << "]";
         for (const char* key : {meta::kDirections, meta::kIterations, meta::kResidual,
-                 meta::kLines, meta::kSeconds, meta::kVersion}) {
+                 meta::kLines, meta::kSeconds, meta::kBrdf, meta::kControlPoints,
+                 meta::kVersion}) {
             if (auto m = (*result)[key]) std::cout << ", " << key + 7 << " " << m->str();
         }
         std::cout << "\n";
@@ -188,7 +196,9 @@ runInfo(const Arguments& a)
     std::vector<std::string> passed;
     for (const auto& g : file.grids) {
         if (g == result) continue;
-        if (g != roles.surface && g != roles.albedo && g != roles.emission && g != roles.density) {
+        if (g != roles.surface && g != roles.albedo && g != roles.emission && g != roles.density
+            && g != roles.specular && g != roles.roughness && g != roles.emissionArea
+            && g->getName() != names::kSpecularRadiosity) {
             passed.push_back("'" + g->getName() + "'");
         }
     }

@@ -46,6 +46,7 @@ runRender(const Arguments& a)
     o.samplesPerPixel = a.getInt("aa");
     o.gather = a.getInt("gather");
     o.directSamples = a.getInt("direct-samples");
+    o.glossyRays = a.getInt("glossy-rays");
     o.cloud.extinctionScale = float(a.getFloat("extinction-scale"));
     o.cloudSource = a.getString("cloud-source");
     const ExrPixel pixel = choice<ExrPixel>(a, "exr-type",

@@ -66,6 +66,12 @@ runSolve(const Arguments& a)
     o.direct = choice<DirectMode>(a, "direct", {{"auto", DirectMode::Auto},
         {"exact", DirectMode::Exact}, {"sweep", DirectMode::Sweep}});
     o.directSamples = a.getInt("direct-samples");
+    o.glossy.model = brdfModelFromName(a.getString("brdf"));
+    o.glossy.controlPoints = a.getInt("control-points");
+    o.glossy.rotation = choice<ControlPoints::RotationKind>(a, "glossy-rotation",
+        {{"resampled", ControlPoints::RotationKind::Resampled},
+            {"continuous", ControlPoints::RotationKind::Continuous},
+            {"permutation", ControlPoints::RotationKind::Permutation}});
     if (method == "montecarlo" && (a.has("direct") || a.has("direct-samples"))) {
         throw UsageError("--direct and --direct-samples do not apply to --method montecarlo");
     }
@@ -87,6 +93,21 @@ runSolve(const Arguments& a)
         return buildScene(file.grids, sceneOpts, &progress);
     });
     if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+    if (scene.raisedRoughness() > 0) {
+        warn(label, std::to_string(scene.raisedRoughness()) + " glossy voxels have a roughness "
+            "below 0.1, raised to 0.1 (control points resolve no sharper lobe)");
+    }
+    if (scene.isGlossy() && method != "sweep") {
+        throw UserError(label + ": glossy surfaces (a `specular` grid) are solved by the line "
+            "sweeps only (--method sweep)");
+    }
+    if (scene.isGlossy() && o.accelerate != Acceleration::None) {
+        warn(label, "glossy surfaces are not Anderson-accelerated: solving without it");
+        o.accelerate = Acceleration::None;
+    }
+    if (scene.isGlossy() && o.update == UpdateScheme::Progressive) {
+        throw UserError(label + ": glossy surfaces need --update inplace or jacobi");
+    }
     if (findGrid(file.grids, names::kDensity)) {
         warn(label, "the fog ('density') is not part of this solve: `vdbrad solve-cloud` solves "
             "the surfaces and the fog together");
@@ -103,8 +124,12 @@ runSolve(const Arguments& a)
         : RadiositySolver::visibilityCacheFor(scene, o, workerThreads(), memoryLimit(a) - held);
     const std::string memory = checkMemory(a, label, held,
         double(RadiositySolver::memoryEstimate(scene, o, workerThreads())));
-    session.finish({solveRadiosity(scene, o, &progress, session.control(memory))}, out,
-        o.maxIterations);
+    openvdb::GridBase::Ptr specular;
+    openvdb::GridBase::Ptr radiosity = solveRadiosity(scene, o, &progress,
+        session.control(memory), &specular);
+    openvdb::GridPtrVec results{radiosity};
+    if (specular) results.push_back(specular);
+    session.finish(results, out, o.maxIterations);
     return 0;
 }
 

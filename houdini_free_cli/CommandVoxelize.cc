@@ -6,6 +6,7 @@
 #include "vdbrad/vdbrad.h"
 
 #include <iostream>
+#include <sstream>
 
 namespace vdbrad {
 namespace cli {
@@ -23,6 +24,7 @@ runVoxelize(const Arguments& a)
     o.separation = a.getInt("separation");
     o.defaultAlbedo = float(a.getFloat("albedo"));
     o.keepSdf = a.flag("keep-sdf");
+    o.specular = !a.flag("no-specular");
     if (isStdin(in)) {
         throw UsageError("the mesh must be a file (its MTL files are found beside it)");
     }
@@ -39,6 +41,16 @@ runVoxelize(const Arguments& a)
         }
     }();
     progress.end(std::to_string(mesh.triangles.size()) + " triangles");
+    for (const Material& m : mesh.materials) {
+        if (o.specular && m.reflectance() > 1.f) {
+            std::ostringstream os;
+            os.precision(4);
+            os << "material '" << m.name << "': Kd + Ks = " << m.reflectance()
+               << " > 1, both scaled by 1/" << m.reflectance() << " (a surface reflects no "
+               << "more light than it receives; --no-specular: Kd alone)";
+            warn(in, os.str());
+        }
+    }
     VdbFile file;
     file.grids = forFile(in, [&] { return voxelizeMesh(mesh, o, &progress); });
     const openvdb::GridBase::Ptr normal = file.grids.front();

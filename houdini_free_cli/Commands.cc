@@ -66,6 +66,9 @@ sceneOptionSpecs()
         OptionSpec{"separation", OptionType::Int, "26", "6",
             "level sets: 26 (surface blocks 26-connected lines) or 6 (thinner, blocks "
             "6-connected lines)"}.oneOf({"6", "26"}),
+        OptionSpec{"roughness", OptionType::Float, "0.5", "0.3",
+            "roughness of glossy voxels when the file has a `specular` grid and no `roughness` "
+            "grid"}.within(0.1, 1),
     };
 }
 
@@ -147,6 +150,8 @@ commands()
                     .within(0, 1),
                 {"keep-sdf", OptionType::Flag, "", "",
                     "also write the mesh's level set `surface` (closed meshes only)"},
+                {"no-specular", OptionType::Flag, "", "",
+                    "ignore MTL Ks/Ns/Pr: every surface diffuse (no `specular`, `roughness` grids)"},
                 kOverwrite, kQuiet},
             {"vdbrad voxelize room.obj room.vdb --res 256",
                 "vdbrad voxelize room.obj - | vdbrad solve - - | vdbrad render - room.exr"},
@@ -217,6 +222,16 @@ commands()
                 OptionSpec{"direct-samples", OptionType::Int, "16", "64",
                     "shadow rays per voxel for exact direct light (4x more where they disagree: "
                     "penumbrae)"}.within(1, 65536),
+                OptionSpec{"brdf", OptionType::String, "phong", "ggx",
+                    "glossy voxels' lobe (files with a `specular` grid): phong (normalised), "
+                    "blinn-phong or ggx"}.oneOf({"phong", "blinn-phong", "ggx"}),
+                OptionSpec{"control-points", OptionType::Int, "162", "642",
+                    "points of each glossy voxel's radiance distribution: 12, 42, 162, 642 or "
+                    "2562 (finer lobes, more memory: ~40 bytes per point and glossy voxel)"}
+                    .oneOf({"12", "42", "162", "642", "2562"}),
+                OptionSpec{"glossy-rotation", OptionType::String, "resampled", "permutation",
+                    "how lobes are turned to each normal: resampled, continuous or permutation "
+                    "(the thesis' two)"}.oneOf({"resampled", "continuous", "permutation"}),
                 kAccelerate, kAndersonDepth, kCheckpoint, kCheckpointEvery, kResume, kThreads,
                 kMaxMemory, kOverwrite, kQuiet}),
             {"vdbrad make cornell - | vdbrad solve - cornell_lit.vdb --directions 1000",
@@ -319,8 +334,13 @@ commands()
                     "of what the rays hit): smooth where the voxels are not); 0: show the "
                     "voxels' radiosity"}.within(0, 65536),
                 OptionSpec{"direct-samples", OptionType::Int, "16", "64",
-                    "--gather: shadow rays per pixel sample for the direct light"}
-                    .within(1, 65536),
+                    "--gather and glossy surfaces: shadow rays per pixel sample for the direct "
+                    "light"}.within(1, 65536),
+                OptionSpec{"glossy-rays", OptionType::Int, "32", "128",
+                    "glossy surfaces (solved with a `specular` grid): rays per pixel sample "
+                    "drawn from the lobe towards the camera, plus the lamps through the lobe: "
+                    "highlights; 0: the lobes' light the same from every direction"}
+                    .within(0, 65536),
                 {"background", OptionType::String, "0,0,0", "0.2,0.3,0.5",
                     "linear RGB seen where rays hit nothing"},
                 OptionSpec{"extinction-scale", OptionType::Float, "1", "10",

@@ -129,6 +129,7 @@ sceneOptions(const Arguments& a)
     o.surface = a.getString("surface");
     o.defaultAlbedo = float(a.getFloat("albedo"));
     o.separation = a.getInt("separation");
+    o.defaultRoughness = float(a.getFloat("roughness"));
     return o;
 }
 

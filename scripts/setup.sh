@@ -5,9 +5,12 @@
 # exrheader, time brings /usr/bin/time (peak memory in samples/trade_study.sh). clang and
 # libclang-rt-14-dev (libFuzzer and clang's sanitizer runtimes, only recommended by clang) build
 # the fuzz targets (scripts/fuzz.sh); g++'s own ASan/UBSan runtimes serve scripts/sanitize.sh.
+# libeigen3-dev and libglpk-dev fit glossy lobes to control points (least squares, and the
+# max-norm linear programs).
 set -euo pipefail
 pkgs=(cmake g++ make libopenvdb-dev libopenvdb-tools libboost-dev libboost-iostreams-dev
-      libopenexr-dev libglm-dev libgtest-dev openexr time clang libclang-rt-14-dev)
+      libopenexr-dev libglm-dev libgtest-dev openexr time clang libclang-rt-14-dev
+      libeigen3-dev libglpk-dev)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

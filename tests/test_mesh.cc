@@ -1,6 +1,8 @@
 // Mesh: OBJ/MTL and PLY reading (exact points, windings, materials, every error path) and the
 // sample meshes in samples/meshes.
+#include "vdbrad/GridContract.h"
 #include "vdbrad/Mesh.h"
+#include "vdbrad/Voxelizer.h"
 
 #include <gtest/gtest.h>
 
@@ -297,6 +299,52 @@ TEST(ObjTest, MtlColoursAndEmissionPerTriangle)
     EXPECT_EQ(m.materials[3].albedo, Vec3f(0.5f));    // no Kd: vdbrad's default albedo
     // Before any usemtl: -1; the quad under "lamp" gives two triangles.
     EXPECT_EQ(m.triangleMaterials, (std::vector<int32_t>{-1, 0, 0, 1, 1, 2, 3}));
+}
+
+TEST(ObjTest, GlossyMaterialsFromKsNsAndPr)
+{
+    // Ks: the lobe's reflectance (grey or RGB); Ns: the Phong exponent -> roughness
+    // sqrt(sqrt(2 / (Ns + 2))); Pr (PBR roughness) wins over Ns in either order.
+    write("glossy.mtl",
+        "newmtl shiny\nKd 0.2\nKs 0.5 0.6 0.7\nNs 30\n"
+        "newmtl pbr\nPr 0.3\nKs 0.4\nNs 1000\n"
+        "newmtl plain\nKd 0.7\n"
+        "newmtl hot\nKd 0.8\nKs 0.5\n");
+    const TriangleMesh m = readObj(write("glossy.obj",
+        "mtllib vdbrad_mesh_glossy.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+        "usemtl shiny\nf 1 2 3\nusemtl pbr\nf 1 2 3\nusemtl plain\nf 1 2 3\n"
+        "usemtl hot\nf 1 2 3\n"));
+    ASSERT_EQ(m.materials.size(), 4u);
+    EXPECT_TRUE(m.hasSpecular());
+    EXPECT_EQ(m.materials[0].specular, Vec3f(0.5f, 0.6f, 0.7f));
+    EXPECT_NEAR(m.materials[0].roughness, 0.5f, 1e-6f);
+    EXPECT_EQ(m.materials[1].specular, Vec3f(0.4f));
+    EXPECT_NEAR(m.materials[1].roughness, 0.3f, 1e-6f);
+    EXPECT_EQ(m.materials[2].specular, Vec3f(0.f));
+    EXPECT_NEAR(m.materials[0].reflectance(), 0.9f, 1e-6f);
+    // Kd + Ks = 1.3: the voxelizer scales both by 1 / 1.3.
+    EXPECT_NEAR(m.materials[3].reflectance(), 1.3f, 1e-6f);
+    VoxelizeOptions o;
+    o.resolution = 8;
+    const openvdb::GridPtrVec grids = voxelizeMesh(m, o);
+    auto find = [&](const char* name) { return findGrid(grids, name); };
+    ASSERT_TRUE(find("specular") && find("roughness"));
+    EXPECT_EQ(find("specular")->valueType(), "vec3s");   // shiny's Ks is not grey
+    o.specular = false;
+    const openvdb::GridPtrVec diffuse = voxelizeMesh(m, o);
+    EXPECT_FALSE(findGrid(diffuse, "specular"));
+    EXPECT_FALSE(findGrid(diffuse, "roughness"));
+    // Ks outside [0, 1], Pr outside [0, 1], Ns negative or missing: errors naming the line.
+    for (const char* bad : {"Ks 1.5", "Pr 2", "Ns -1", "Ns"}) {
+        write("bad.mtl", std::string("newmtl x\n") + bad + "\n");
+        try {
+            readObj(write("bad.obj", "mtllib vdbrad_mesh_bad.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                "f 1 2 3\n"));
+            ADD_FAILURE() << bad;
+        } catch (const openvdb::ValueError& e) {
+            EXPECT_NE(std::string(e.what()).find("bad.mtl:2"), std::string::npos) << e.what();
+        }
+    }
 }
 
 TEST(ObjTest, SeveralLibrariesOnOneLineFirstDefinitionWins)

@@ -203,6 +203,7 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
         // anything there (none reached it, or all fell off it or behind x).
         std::vector<double>& shares = ws.shares;
         shares.assign(ws.front.size(), -1.0);
+        ws.arrivals.clear();
         for (size_t j = 0; j < count; ++j) {
             const double u = (double(j) + unitHash(mixHash(h + 3 * j + 3)))
                 / double(count) * total;
@@ -239,6 +240,7 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
                 av += weight;
                 allAV += weight;
                 anySeen = true;
+                if (ws.incident) ws.arrivals.emplace_back(uint32_t(at), d / std::sqrt(r2), weight);
             } else {
                 anyHidden = true;
             }
@@ -252,6 +254,30 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
             const size_t g = ws.front[q];
             const double v = shares[q] >= 0.0 ? shares[q] : overall;
             sum += patches[g].exitance * (ws.factor[g] * v);
+        }
+        if (ws.incident) {
+            // Each patch's light over its arrived samples (arrivals are in front order).
+            ws.incident->clear();
+            size_t e = 0;
+            for (size_t q = 0; q < ws.front.size(); ++q) {
+                const size_t g = ws.front[q];
+                const double v = shares[q] >= 0.0 ? shares[q] : overall;
+                const Vec3d light = patches[g].exitance * (ws.factor[g] * v);
+                const size_t first = e;
+                double total = 0.0;
+                for (; e < ws.arrivals.size() && std::get<0>(ws.arrivals[e]) == q; ++e) {
+                    total += std::get<2>(ws.arrivals[e]);
+                }
+                if (!(v > 0.0)) continue;
+                if (total > 0.0) {
+                    for (size_t k = first; k < e; ++k) {
+                        ws.incident->emplace_back(std::get<1>(ws.arrivals[k]),
+                            light * (std::get<2>(ws.arrivals[k]) / total));
+                    }
+                } else {
+                    ws.incident->emplace_back((patches[g].centre - p).unit(), light);
+                }
+            }
         }
         return sum;
     };

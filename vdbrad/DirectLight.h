@@ -34,6 +34,8 @@
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace vdbrad {
@@ -94,6 +96,12 @@ public:
         std::vector<double> weight, factor, shares;
         std::vector<uint32_t> front;
         uint64_t rays = 0, factors = 0;
+        /// If not null, at() also says where the light comes from (glossy receivers): pairs of
+        /// a unit direction towards an emitter and the irradiance arriving from it, adding up
+        /// to what at() returns. Each patch's light is dealt to its samples that arrived, by
+        /// their weights (to its centre if none did).
+        std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>>* incident = nullptr;
+        std::vector<std::tuple<uint32_t, openvdb::Vec3d, double>> arrivals;   // (front, dir, w)
     };
 
     /// The voxels' planes and the surface rule the shadow rays follow.

@@ -53,6 +53,13 @@ identifyRoles(const openvdb::GridPtrVec& grids, const std::string& surfaceName,
         roles.emissionArea && roles.emissionArea->isType<openvdb::FloatGrid>(), "emission_area",
         "float");
 
+    roles.specular = findGrid(grids, names::kSpecular);
+    requireType(roles.specular, roles.specular && colour(roles.specular), "specular",
+        "float or vec3s");
+    roles.roughness = findGrid(grids, names::kRoughness);
+    requireType(roles.roughness, roles.roughness && roles.roughness->isType<openvdb::FloatGrid>(),
+        "roughness", "float");
+
     if (!surfaceName.empty()) {
         roles.surface = findGrid(grids, surfaceName);
         if (!roles.surface) {

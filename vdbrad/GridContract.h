@@ -4,6 +4,9 @@
 //             a Vec3f grid named `normal` whose active voxels are the surface voxels
 //   albedo    float or Vec3f: diffuse reflectance (surfaces) / single-scattering albedo (clouds)
 //   emission  float or Vec3f: emitted radiosity of surface voxels
+//   specular  float or Vec3f, optional: reflectance of a glossy lobe on top of the albedo
+//             (MTL Ks; albedo + specular <= 1 per channel)
+//   roughness float, optional: the glossy lobe's roughness in (0, 1] (Brdf.h)
 //   emission_area  float, optional: the emitting surface's area inside each emitting voxel
 //             (world units^2; the voxelizer writes it), so that exact direct light emits the
 //             mesh light's power whatever the voxels' coverage
@@ -25,8 +28,11 @@ constexpr const char* kNormal = "normal";
 constexpr const char* kAlbedo = "albedo";
 constexpr const char* kEmission = "emission";
 constexpr const char* kEmissionArea = "emission_area";
+constexpr const char* kSpecular = "specular";
+constexpr const char* kRoughness = "roughness";
 constexpr const char* kDensity = "density";
 constexpr const char* kRadiosity = "radiosity";
+constexpr const char* kSpecularRadiosity = "specular_radiosity";
 } // namespace names
 
 struct GridRoles
@@ -37,6 +43,8 @@ struct GridRoles
     openvdb::GridBase::ConstPtr albedo;
     openvdb::GridBase::ConstPtr emission;
     openvdb::GridBase::ConstPtr emissionArea;
+    openvdb::GridBase::ConstPtr specular;
+    openvdb::GridBase::ConstPtr roughness;
     openvdb::GridBase::ConstPtr density;
 };
 

@@ -25,6 +25,15 @@ struct Material
     openvdb::Vec3f albedo{0.5f};
     /// Emitted radiosity (MTL `Ke`), each channel >= 0.
     openvdb::Vec3f emission{0.f};
+    /// Reflectance of a glossy lobe (MTL `Ks`), each channel in [0, 1]. Where albedo + specular
+    /// exceeds 1 in a channel (MTL files often have it) the voxelizer scales both by
+    /// 1 / reflectance(): a surface reflects no more light than it receives.
+    openvdb::Vec3f specular{0.f};
+    /// The lobe's roughness (Brdf.h): MTL's PBR `Pr` if given, else from the Phong exponent `Ns`
+    /// (Brdf::roughnessFromExponent); 0.5 when neither is given.
+    float roughness = 0.5f;
+    /// The largest albedo + specular over the channels.
+    float reflectance() const;
 };
 
 struct TriangleMesh
@@ -38,6 +47,8 @@ struct TriangleMesh
     std::vector<Material> materials;
 
     bool hasMaterials() const { return !materials.empty(); }
+    /// True if some material has a glossy lobe (specular > 0).
+    bool hasSpecular() const;
 };
 
 /// @brief Read a Wavefront OBJ file; `mtllib` files are looked up beside it.
@@ -45,7 +56,8 @@ struct TriangleMesh
 /// negative indices count back from the last vertex so far; polygons fan-triangulated, degenerate
 /// triangles kept), `mtllib` (one or more names), `usemtl`; ignores everything else. CRLF,
 /// tabs, comments and trailing-backslash continuations are fine. In MTL files only `newmtl`,
-/// `Kd` and `Ke` (one value: grey) matter; a name defined twice keeps its first definition.
+/// `Kd`, `Ke`, `Ks` (one value: grey, or three), `Ns` and `Pr` matter; a name defined twice
+/// keeps its first definition.
 /// Triangles before any `usemtl`, or in a file without `mtllib`, get material -1.
 /// @throw openvdb::IoError  unreadable file or missing MTL file
 /// @throw openvdb::ValueError malformed content, naming the file and line (e.g. "cube.obj:12:

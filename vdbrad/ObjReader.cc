@@ -1,6 +1,8 @@
 // ObjReader: Wavefront OBJ files and their MTL material libraries (Mesh.h: readObj), read as
 // untrusted text (MeshParsing.h).
 #include "vdbrad/Mesh.h"
+
+#include "vdbrad/Brdf.h"
 #include "vdbrad/MeshParsing.h"
 
 #include <openvdb/Exceptions.h>
@@ -11,7 +13,9 @@
 #include <fstream>
 #include <limits>
 #include <sys/stat.h>
+#include <cmath>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace vdbrad {
 
@@ -87,12 +91,34 @@ restOfLine(std::string_view line, std::string_view keyword)
     return trim(line.substr(size_t(keyword.data() - line.data()) + keyword.size()));
 }
 
+} // namespace
+
+bool
+TriangleMesh::hasSpecular() const
+{
+    for (const Material& m : materials) {
+        if (m.specular != openvdb::Vec3f(0.f)) return true;
+    }
+    return false;
+}
+
+float
+Material::reflectance() const
+{
+    float worst = 0.f;
+    for (int i = 0; i < 3; ++i) worst = std::max(worst, albedo[i] + specular[i]);
+    return worst;
+}
+
+namespace {
+
 // ---- MTL ---------------------------------------------------------------------------------------
 
 struct MaterialTable
 {
     std::vector<Material> materials;
     std::unordered_map<std::string, int32_t> index;
+    std::unordered_set<int32_t> pbrRoughness;   // materials whose roughness came from Pr
 };
 
 /// Reads `Kd` / `Ke`: one value (grey) or three. Stops at a trailing comment.
@@ -159,24 +185,47 @@ readMtl(const std::string& path, const std::string& context, MaterialTable& tabl
             // the rest of an uncoloured vdbrad scene: the tool's default --albedo, 0.5.
             m.albedo = Vec3f(0.5f);
             table.materials.push_back(m);
-        } else if (equalsNoCase(key, "Kd") || equalsNoCase(key, "Ke")) {
+        } else if (equalsNoCase(key, "Kd") || equalsNoCase(key, "Ke")
+                   || equalsNoCase(key, "Ks")) {
             if (current < 0 && !skipping) {
                 OPENVDB_THROW(openvdb::ValueError, where << ": " << key << " before any newmtl");
             }
             const Vec3f c = parseColour(tokens, where);
-            const bool diffuse = equalsNoCase(key, "Kd");
+            const bool emission = equalsNoCase(key, "Ke");
             for (int i = 0; i < 3; ++i) {
-                if (diffuse ? (c[i] < 0.f || c[i] > 1.f) : c[i] < 0.f) {
+                if (!emission ? (c[i] < 0.f || c[i] > 1.f) : c[i] < 0.f) {
                     OPENVDB_THROW(openvdb::ValueError, where << ": " << key << " value "
-                        << formatNumber(c[i]) << (diffuse ? " outside [0, 1]" : " is negative"));
+                        << formatNumber(c[i]) << (!emission ? " outside [0, 1]" : " is negative"));
                 }
             }
             if (skipping) continue;
             Material& m = table.materials[current];
-            (diffuse ? m.albedo : m.emission) = c;
+            (emission ? m.emission : equalsNoCase(key, "Kd") ? m.albedo : m.specular) = c;
+        } else if (equalsNoCase(key, "Ns") || equalsNoCase(key, "Pr")) {
+            if (current < 0 && !skipping) {
+                OPENVDB_THROW(openvdb::ValueError, where << ": " << key << " before any newmtl");
+            }
+            double v;
+            if (tokens.size() < 2 || !parseDouble(tokens[1], v) || !std::isfinite(v)) {
+                OPENVDB_THROW(openvdb::ValueError, where << ": " << key << " needs a number");
+            }
+            const bool pbr = equalsNoCase(key, "Pr");
+            if (pbr ? (v < 0.0 || v > 1.0) : v < 0.0) {
+                OPENVDB_THROW(openvdb::ValueError, where << ": " << key << " value "
+                    << formatNumber(v) << (pbr ? " outside [0, 1]" : " is negative"));
+            }
+            if (skipping) continue;
+            Material& m = table.materials[current];
+            // Pr (PBR roughness) wins over Ns whichever comes first.
+            if (pbr) {
+                m.roughness = float(std::clamp(v, Brdf::kMinRoughness, 1.0));
+                table.pbrRoughness.insert(current);
+            } else if (!table.pbrRoughness.count(current)) {
+                m.roughness = float(Brdf::roughnessFromExponent(v));
+            }
         }
-        // Everything else (Ka, Ks, Ns, d, illum, maps, PBR extensions) does not affect diffuse
-        // radiosity.
+        // Everything else (Ka, d, illum, maps, other PBR extensions) does not affect the
+        // light vdbrad solves.
     }
 }
 

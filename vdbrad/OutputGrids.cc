@@ -115,6 +115,10 @@ sceneToGrids(const Scene& scene)
         }
         out.push_back(arrayToGrid(scene.voxels(), area, scene.transform(), names::kEmissionArea));
     }
+    if (scene.isGlossy()) {
+        out.push_back(attributeGrid(scene.specular(), names::kSpecular));
+        out.push_back(attributeGrid(scene.roughness(), names::kRoughness));
+    }
     return out;
 }
 

@@ -27,6 +27,8 @@ constexpr const char* kResidual = "vdbrad:residual";
 constexpr const char* kSeconds = "vdbrad:seconds";
 constexpr const char* kLines = "vdbrad:lines";
 constexpr const char* kVersion = "vdbrad:version";
+constexpr const char* kBrdf = "vdbrad:brdf";
+constexpr const char* kControlPoints = "vdbrad:control_points";
 } // namespace meta
 
 /// What a solve reports; written as metadata on its result grid.

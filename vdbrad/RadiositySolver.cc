@@ -3,10 +3,12 @@
 #include "vdbrad/Denormals.h"
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
+#include "vdbrad/GlossySurfaces.h"
 #include "vdbrad/LeafOrder.h"
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/Precision.h"
 #include "vdbrad/RayCastVisibility.h"
+#include "vdbrad/SampleHash.h"
 #include "vdbrad/SweepSchedule.h"
 #include "vdbrad/TextFormat.h"
 #include "vdbrad/VisibilityCache.h"
@@ -35,6 +37,10 @@ constexpr uint64_t kEnclosureBlocks = uint64_t(1) << 29;
 
 namespace {
 using namespace detail;   // Precision.h: the state types
+
+// A glossy voxel's direct light (per channel; grey scenes: equal channels) as the state's type.
+template<typename T> T channelsOf(const openvdb::Vec3d& v) { return T(v[0]); }
+template<> openvdb::Vec3d channelsOf<openvdb::Vec3d>(const openvdb::Vec3d& v) { return v; }
 } // namespace
 
 // What the solver needs that does not depend on the value type.
@@ -74,6 +80,18 @@ struct RadiositySolver::Impl
     const Attribute* source = nullptr;                   // E, or rho D
     std::vector<float> totalGrey;
     std::vector<openvdb::Vec3f> totalRgb;
+    // Glossy voxels (GlossySurfaces.h; null for a diffuse scene, which allocates none of
+    // this): per pattern, each position's rank among the glossy voxels in the pattern's order
+    // (a group's splats and its senders' lobes are laid out in that order, so that a sweep
+    // walks them sequentially rather than at random)
+    // and each glossy voxel's rank; the first iteration's splatted hit weights per group and
+    // the measured shares (kept for checkpoints); with exact direct light, each glossy voxel's
+    // direct light splatted on the points (per channel).
+    std::unique_ptr<GlossySurfaces> glossy;
+    std::array<std::vector<uint32_t>, SweepSchedule::kPatterns> glossyAt, glossyRank;
+    std::vector<std::vector<double>> glossyHits;
+    std::vector<double> glossyShare;
+    std::vector<openvdb::Vec3d> glossyDirect;
 
     // The iterate and what the next iteration needs of the last one, in one of the four types.
     template<typename ValueT>
@@ -85,6 +103,10 @@ struct RadiositySolver::Impl
         std::vector<ValueT> unshot;                          // progressive shooting only
         std::vector<std::vector<typename Traits<ValueT>::Acc>> gathered;   // per group
         std::unique_ptr<AndersonMixerT<Scalar>> mixer;       // Acceleration::Anderson only
+        // Glossy voxels: their lobes' reflected light S, and per group the light splatted on
+        // their points (both P values per glossy voxel).
+        std::vector<ValueT> spec;
+        std::vector<std::vector<typename Traits<ValueT>::Acc>> incident;
         SweepSchedule::PerThread<LineSweep::Workspace<ValueT>> work;
     };
     // Only the one of the scene's kind and precision is used; in double, the float one of the
@@ -108,9 +130,24 @@ struct RadiositySolver::Impl
             else f(self.template state<float>());
         }
     }
-    // After a change of B: its float rounding (double state) and, with exact direct light,
-    // E + R.
-    void narrowView(const Attribute& emission)
+    // The lobes' normalisation from the measured shares (empty ones: the full hemisphere).
+    void applyGlossyShares()
+    {
+        const size_t P = glossy->points();
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, glossy->size()),
+            [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t k = r.begin(); k != r.end(); ++k) {
+                    const double* share = glossyShare.empty() ? nullptr : &glossyShare[k * P];
+                    const bool any = share && std::any_of(share, share + P,
+                        [](double h) { return h > 0.0; });
+                    glossy->setShare(k, any ? share : nullptr);
+                }
+            });
+    }
+
+    // After a change of B: its float rounding (double state) and, with exact direct light or
+    // glossy voxels, the radiosity E + R or B_d + the lobes' exitance.
+    void narrowView(const Scene& scene)
     {
         if (wide) {
             auto copy = [](auto& to, const auto& from) {
@@ -121,13 +158,28 @@ struct RadiositySolver::Impl
             copy(state<float>().B, state<double>().B);
             copy(state<openvdb::Vec3f>().B, state<openvdb::Vec3d>().B);
         }
-        if (!exact) return;
+        if (!exact && !glossy) return;
+        const Attribute& emission = scene.emission();
         const std::vector<float>& g = state<float>().B;
         const std::vector<openvdb::Vec3f>& c = state<openvdb::Vec3f>().B;
         totalGrey.resize(g.size());
-        for (size_t i = 0; i < g.size(); ++i) totalGrey[i] = emission.grey(i) + g[i];
+        for (size_t i = 0; i < g.size(); ++i) totalGrey[i] = (exact ? emission.grey(i) : 0.f) + g[i];
         totalRgb.resize(c.size());
-        for (size_t i = 0; i < c.size(); ++i) totalRgb[i] = emission.rgb(i) + c[i];
+        for (size_t i = 0; i < c.size(); ++i) {
+            totalRgb[i] = (exact ? emission.rgb(i) : openvdb::Vec3f(0.f)) + c[i];
+        }
+        if (!glossy) return;
+        const size_t P = glossy->points();
+        withState(scene.isRgb(), [&](const auto& st) {
+            using T = typename std::decay_t<decltype(st.B)>::value_type;
+            if (st.spec.empty()) return;
+            for (size_t k = 0; k < glossy->size(); ++k) {
+                const T e = glossy->exitance(k, &st.spec[k * P]);
+                const size_t i = glossy->voxel(k);
+                if constexpr (std::is_arithmetic_v<T>) totalGrey[i] += float(e);
+                else totalRgb[i] += openvdb::Vec3f(e);
+            }
+        });
     }
 };
 
@@ -162,7 +214,7 @@ struct RadiositySolver::Engine
                 return std::none_of(v, v + size, [](Scalar e) { return e < 0; });
             });
         }
-        impl.narrowView(s.mScene.emission());
+        impl.narrowView(s.mScene);
         return residual;
     }
 
@@ -182,12 +234,26 @@ struct RadiositySolver::Engine
             Hits ? H->data() : static_cast<Scalar*>(nullptr), uint32_t(G.size()));
     }
 
+    // What a group's sweeps read and write for glossy voxels: their glossy indices (in the
+    // group's pattern order), their lobes' light S, and the group's splat of what they receive
+    // (and, in the first iteration, of the weights of the directions that meet something).
+    struct GlossyLanes
+    {
+        const uint32_t* at = nullptr;
+        const ValueT* spec = nullptr;
+        AccT* incident = nullptr;
+        double* hits = nullptr;
+        size_t points = 0;
+    };
+
     // Group g's directions gathered into G (and their hit weights into H), from Bp (the
     // swept radiosity in g's pattern order): each direction is swept, or replayed from the
-    // visibility cache, or cast (Visibility::RayCast).
-    template<bool Hits>
+    // visibility cache, or cast (Visibility::RayCast). Glossy: senders add their lobe's light
+    // along the direction, receivers splat what they see on its points (GlossySurfaces.h).
+    template<bool Hits, bool Glossy>
     static void gatherGroup(RadiositySolver& s, int g, const std::vector<ValueT>& Bp,
-        std::vector<AccT>& G, std::vector<Scalar>* H, SweepProgress& progress)
+        std::vector<AccT>& G, std::vector<Scalar>* H, const GlossyLanes& lanes,
+        SweepProgress& progress)
     {
         Impl& impl = *s.mImpl;
         const SweepSchedule& schedule = *impl.schedule;
@@ -236,12 +302,33 @@ struct RadiositySolver::Engine
             }
             flush();
             const float c = impl.coefficient[k];
+            // Glossy: the points of +sigma and -sigma.
+            const ControlPoints::Weights* toward[2] = {nullptr, nullptr};
+            if constexpr (Glossy) {
+                toward[0] = &impl.glossy->toward(k, false);
+                toward[1] = &impl.glossy->toward(k, true);
+            }
             // x (a position in the pattern's order) receives what it sees.
             auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
                 if (seen) {
                     const float w = std::abs(sigmaDotN) * c;
                     G[x] += *seen * w;
                     if constexpr (Hits) (*H)[x] += w;
+                    if constexpr (Glossy) {
+                        const uint32_t gx = lanes.at[x];
+                        if (gx != GlossySurfaces::kNone) {
+                            // x looks along +sigma (sigma . n > 0): the light comes from there.
+                            const ControlPoints::Weights& u = *toward[sigmaDotN > 0.f ? 0 : 1];
+                            AccT* I = lanes.incident + size_t(gx) * lanes.points;
+                            for (int j = 0; j < 3; ++j) {
+                                I[u.index[j]] += *seen * float(w * u.weight[j]);
+                            }
+                            if constexpr (Hits) {
+                                double* h = lanes.hits + size_t(gx) * lanes.points;
+                                for (int j = 0; j < 3; ++j) h[u.index[j]] += w * u.weight[j];
+                            }
+                        }
+                    }
                 }
             };
             if (impl.rays) {
@@ -249,6 +336,20 @@ struct RadiositySolver::Engine
                 impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
                     gather(at[x], y == RayCastVisibility::kNone ? nullptr : &Bp[at[y]], dn);
                 });
+            } else if constexpr (Glossy) {
+                // A glossy sender adds its lobe's light along the sense it faces.
+                pattern.sweep->sweep(sigma, schedule.reversed(k), work,
+                    [&](uint32_t y) {
+                        ValueT v = Bp[y];
+                        const uint32_t gy = lanes.at[y];
+                        if (gy != GlossySurfaces::kNone) {
+                            const ControlPoints::Weights& u = *toward[work.facing[y] > 0.f ? 0 : 1];
+                            const ValueT* S = lanes.spec + size_t(gy) * lanes.points;
+                            for (int j = 0; j < 3; ++j) v += S[u.index[j]] * float(u.weight[j]);
+                        }
+                        return v;
+                    },
+                    gather);
             } else {
                 pattern.sweep->sweep(sigma, schedule.reversed(k), work,
                     [&](uint32_t y) { return Bp[y]; }, gather);
@@ -285,16 +386,33 @@ struct RadiositySolver::Engine
         std::vector<std::vector<Scalar>> hits(static_cast<size_t>(kGroups));
         SweepProgress progress(interrupt, s.directions().size());
         const std::vector<ValueT> previous = B;
+        // Glossy voxels: per group, the light splatted on their points.
+        Impl::State<ValueT>& st = impl.state<ValueT>();
+        const GlossySurfaces* glossy = impl.glossy.get();
+        const size_t P = glossy ? glossy->points() : 0, glossyN = glossy ? glossy->size() : 0;
+        const std::vector<ValueT> previousSpec = st.spec;
+        if (glossy) {
+            st.incident.resize(size_t(kGroups));
+            if (measureHits) impl.glossyHits.assign(size_t(kGroups), {});
+        }
 
         for (int phase = 0; phase < phases; ++phase) {
             // In two phases (in-place), groups 0-3 then 4-7 sweep, B being updated in between.
             auto inPhase = [&](int g) {
                 return phases == 1 || g / SweepSchedule::kPatterns == phase;
             };
-            // B in each pattern's order, so that the sweeps read it sequentially.
-            std::array<std::vector<ValueT>, SweepSchedule::kPatterns> ordered;
+            // B in each pattern's order, so that the sweeps read it sequentially; likewise the
+            // glossy voxels' lobes.
+            std::array<std::vector<ValueT>, SweepSchedule::kPatterns> ordered, specOrdered;
             for (size_t p = 0; p < ordered.size(); ++p) {
-                if (!schedule.pattern(p).empty()) schedule.toPatternOrder(p, source, ordered[p]);
+                if (schedule.pattern(p).empty()) continue;
+                schedule.toPatternOrder(p, source, ordered[p]);
+                if (!glossy) continue;
+                specOrdered[p].resize(glossyN * P);
+                const std::vector<uint32_t>& rank = impl.glossyRank[p];
+                for (size_t k = 0; k < glossyN; ++k) {
+                    std::copy_n(&st.spec[k * P], P, &specOrdered[p][size_t(rank[k]) * P]);
+                }
             }
             schedule.forEachGroup(progress, "radiosity solve", inPhase, [&](int g) {
                 std::vector<AccT>& G = gathered[size_t(g)];
@@ -302,12 +420,28 @@ struct RadiositySolver::Engine
                 std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
                 const std::vector<ValueT>& Bp = ordered[SweepSchedule::patternOf(g)];
                 // Compiled with and without the hit weights, so that the sweeps of every
-                // iteration but the first test nothing for them.
+                // iteration but the first test nothing for them, and with and without glossy
+                // voxels, so that a diffuse scene's sweeps test nothing for them.
+                GlossyLanes lanes;
+                if (glossy) {
+                    std::vector<AccT>& I = st.incident[size_t(g)];
+                    I.assign(glossyN * P, openvdb::zeroVal<AccT>());
+                    lanes.at = impl.glossyAt[SweepSchedule::patternOf(g)].data();
+                    lanes.spec = specOrdered[SweepSchedule::patternOf(g)].data();
+                    lanes.incident = I.data();
+                    lanes.points = P;
+                    if (H) {
+                        impl.glossyHits[size_t(g)].assign(glossyN * P, 0.0);
+                        lanes.hits = impl.glossyHits[size_t(g)].data();
+                    }
+                }
                 if (H) {
                     H->assign(n, Scalar(0));
-                    gatherGroup<true>(s, g, Bp, G, H, progress);
+                    if (glossy) gatherGroup<true, true>(s, g, Bp, G, H, lanes, progress);
+                    else gatherGroup<true, false>(s, g, Bp, G, H, lanes, progress);
                 } else {
-                    gatherGroup<false>(s, g, Bp, G, H, progress);
+                    if (glossy) gatherGroup<false, true>(s, g, Bp, G, H, lanes, progress);
+                    else gatherGroup<false, false>(s, g, Bp, G, H, lanes, progress);
                 }
             });
 
@@ -321,6 +455,27 @@ struct RadiositySolver::Engine
                             if (h > 0.0) impl.invZ[i] = 1.0 / h;
                         }
                     });
+                if (glossy) {
+                    // Closed-room glossy voxels: their lobes normalised over the directions
+                    // that met something, as their diffuse part is.
+                    impl.glossyShare.assign(glossyN * P, 0.0);
+                    tbb::parallel_for(tbb::blocked_range<size_t>(0, glossyN),
+                        [&](const tbb::blocked_range<size_t>& r) {
+                            for (size_t k = r.begin(); k != r.end(); ++k) {
+                                if (impl.regions.region[glossy->voxel(k)] == 0) continue;
+                                double* share = &impl.glossyShare[k * P];
+                                for (int gr = 0; gr < kGroups; ++gr) {
+                                    const auto& h = impl.glossyHits[size_t(gr)];
+                                    if (h.empty()) continue;
+                                    const size_t at = size_t(impl.glossyRank[
+                                        SweepSchedule::patternOf(gr)][k]) * P;
+                                    for (size_t o = 0; o < P; ++o) share[o] += h[at + o];
+                                }
+                            }
+                        });
+                    impl.applyGlossyShares();
+                    impl.glossyHits.clear();
+                }
                 impl.hitsKnown = true;
             }
             tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
@@ -338,6 +493,38 @@ struct RadiositySolver::Engine
                         }
                     }
                 });
+            if (glossy && phase == phases - 1) {
+                // Each glossy voxel reflects what its points received (in group order), once
+                // per iteration: a reflection costs ~support^2 products, a sweep phase a few
+                // per direction, and updating the lobes after the first half too cost more
+                // (BENCHMARKS.md, "Glossy surfaces") than the half-iteration they gain.
+                tbb::parallel_for(tbb::blocked_range<size_t>(0, glossyN),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                        std::vector<WideT> I(P);
+                        std::vector<ValueT> In(P);
+                        for (size_t k = r.begin(); k != r.end(); ++k) {
+                            std::fill(I.begin(), I.end(), openvdb::zeroVal<WideT>());
+                            for (int gr = 0; gr < kGroups; ++gr) {
+                                const auto& a = st.incident[size_t(gr)];
+                                if (a.empty()) continue;
+                                const size_t at = size_t(impl.glossyRank[
+                                    SweepSchedule::patternOf(gr)][k]) * P;
+                                for (size_t o = 0; o < P; ++o) I[o] += WideT(a[at + o]);
+                            }
+                            if (!impl.glossyDirect.empty()) {
+                                // Irradiance to a splat: times the voxel's cosine sum 1 / invZ.
+                                const double z = 1.0 / impl.invZ[glossy->voxel(k)];
+                                for (size_t o = 0; o < P; ++o) {
+                                    I[o] += channelsOf<WideT>(impl.glossyDirect[k * P + o] * z);
+                                }
+                            }
+                            // Reflected in the state's own precision (the sums above are
+                            // wide): float products are half the memory traffic.
+                            for (size_t o = 0; o < P; ++o) In[o] = ValueT(I[o]);
+                            glossy->reflect(k, In.data(), &st.spec[k * P]);
+                        }
+                    });
+            }
         }
 
         // Relative to the radiosity B, also where the iterate is its reflected part R = B - E.
@@ -346,6 +533,10 @@ struct RadiositySolver::Engine
             maxChange = std::max(maxChange, magnitudeOfDiff(B[i], previous[i]));
             maxSize = std::max(maxSize, magnitude(impl.exact
                 ? ValueT(B[i] + value<ValueT>(scene.emission(), i)) : B[i]));
+        }
+        for (size_t e = 0; e < st.spec.size(); ++e) {
+            maxChange = std::max(maxChange, magnitudeOfDiff(st.spec[e], previousSpec[e]));
+            maxSize = std::max(maxSize, magnitude(st.spec[e]));
         }
         return maxSize > 0.0 ? maxChange / maxSize : 0.0;
     }
@@ -378,9 +569,26 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     const size_t dirs = directions.size(), n = scene.size();
 
     Impl& impl = *mImpl;
-    // A cache pays from the second iteration on.
+    if (scene.isGlossy()) {
+        // The lobes' light is carried by the sweeps only; their state is not B alone.
+        if (options.update == UpdateScheme::Progressive) {
+            OPENVDB_THROW(openvdb::ValueError, "glossy surfaces need Jacobi or in-place "
+                "updates, not progressive shooting");
+        }
+        if (options.accelerate == Acceleration::Anderson) {
+            OPENVDB_THROW(openvdb::ValueError, "glossy surfaces are not Anderson-accelerated "
+                "(their lobes' light is not part of the mixed iterate)");
+        }
+        if (options.visibility == Visibility::RayCast) {
+            OPENVDB_THROW(openvdb::ValueError, "glossy surfaces are solved with the line "
+                "sweeps, not the ray-casting reference");
+        }
+        impl.glossy.reset(new GlossySurfaces(scene, directions, options.glossy));
+    }
+    // A cache pays from the second iteration on. Glossy senders' light depends on the
+    // direction, which the cache's replay does not carry: glossy scenes sweep every time.
     if (options.visibilityCache > 0 && options.visibility == Visibility::Sweep
-        && options.maxIterations > 1) {
+        && options.maxIterations > 1 && !impl.glossy) {
         impl.cache.reset(new VisibilityCache(dirs, n, options.visibilityCache));
         impl.offered.assign(dirs, 0);
     }
@@ -401,6 +609,20 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     layout.depth = options.occlusionDepth;
     layout.regions = regions;
     impl.schedule.reset(new SweepSchedule(scene.voxels(), std::move(directions), layout));
+    if (impl.glossy) {
+        for (size_t p = 0; p < impl.glossyAt.size(); ++p) {
+            const std::vector<uint32_t>& order = impl.schedule->pattern(p).order;
+            if (order.empty()) continue;
+            impl.glossyAt[p].resize(order.size());
+            impl.glossyRank[p].resize(impl.glossy->size());
+            uint32_t rank = 0;
+            for (size_t x = 0; x < order.size(); ++x) {
+                const uint32_t k = impl.glossy->glossyOf(order[x]);
+                impl.glossyAt[p][x] = k == GlossySurfaces::kNone ? k : rank;
+                if (k != GlossySurfaces::kNone) impl.glossyRank[p][k] = rank++;
+            }
+        }
+    }
     if (options.visibility == Visibility::RayCast) {
         impl.rays.reset(new RayCastVisibility(scene.voxels(), scene.normals(), options.lines,
             options.occlusionDepth, regions));
@@ -422,10 +644,13 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         st.B.resize(n);
         for (size_t i = 0; i < n; ++i) st.B[i] = value<ValueT>(*impl.source, i);
         st.mixer = mIteration.makeMixer<typename StateT::Scalar>(n * StateT::kWidth);
+        if (impl.glossy) {
+            st.spec.assign(impl.glossy->size() * impl.glossy->points(), ValueT(0));
+        }
         // Nothing has been shot yet: all of the source (E, or rho D) is unshot.
         if (options.update == UpdateScheme::Progressive) st.unshot = st.B;
     });
-    impl.narrowView(scene.emission());
+    impl.narrowView(scene);
 }
 
 RadiositySolver::~RadiositySolver() = default;
@@ -464,6 +689,34 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
         for (size_t i = 0; i < n; ++i) v[i] = mScene.albedo().grey(i) * D[i][0];
         impl.reflected = Attribute::fromGrey(std::move(v));
     }
+    if (impl.glossy) {
+        // Glossy voxels need where their direct light comes from: the same estimate, its
+        // arrivals splatted on the points (per unit of irradiance; iterate() scales by the
+        // voxel's cosine sum as the sweeps' splats are).
+        const GlossySurfaces& gl = *impl.glossy;
+        const size_t P = gl.points();
+        impl.glossyDirect.assign(gl.size() * P, openvdb::Vec3d(0.0));
+        DirectLightSampler sampler(mScene, impl.emitters, d,
+            impl.regions.cavities > 0 ? &impl.regions.region : nullptr);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, gl.size(), 16),
+            [&](const tbb::blocked_range<size_t>& r) {
+                DirectLightSampler::Workspace ws(sampler);
+                std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>> incident;
+                ws.incident = &incident;
+                for (size_t k = r.begin(); k != r.end(); ++k) {
+                    const size_t i = gl.voxel(k);
+                    sampler.at(mScene.voxels().coord(i).asVec3d(),
+                        openvdb::Vec3d(mScene.normal(i)), i,
+                        mixHash(d.seed ^ mixHash(uint64_t(i))), ws);
+                    for (const auto& [dir, light] : incident) {
+                        const ControlPoints::Weights w = gl.controlPoints().weights(dir);
+                        for (int j = 0; j < 3; ++j) {
+                            impl.glossyDirect[k * P + w.index[j]] += light * w.weight[j];
+                        }
+                    }
+                }
+            });
+    }
     impl.directReady = true;
     if (!impl.startFromSource) return;
     impl.startFromSource = false;
@@ -472,7 +725,7 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
         for (size_t i = 0; i < n; ++i) st.B[i] = value<ValueT>(impl.reflected, i);
         if (mOptions.update == UpdateScheme::Progressive) st.unshot = st.B;
     });
-    impl.narrowView(mScene.emission());
+    impl.narrowView(mScene);
 }
 
 size_t
@@ -525,7 +778,7 @@ RadiositySolver::replaceIterate(const std::vector<ValueT>& b)
         if (st.mixer) st.mixer->restart();
     });
     impl.startFromSource = false;
-    impl.narrowView(mScene.emission());
+    impl.narrowView(mScene);
     impl.gatheredStale = true;
 }
 
@@ -571,6 +824,29 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
                          : AndersonMixerT<float>::bytes(channels, options.andersonDepth);
     }
     size_t bytes = n * perVoxel;
+    if (scene.isGlossy()) {
+        // Per glossy voxel: S, each group's splat and (first iteration) hit splat, the previous
+        // S, the measured share, the normaliser and, with exact direct light, the direct splat;
+        // per scene voxel, the glossy index in each pattern's order.
+        size_t glossy = 0;
+        std::vector<char> roughness(size_t(std::lround(1.0 / GlossySurfaces::kRoughnessStep)) + 1);
+        for (size_t i = 0; i < n; ++i) {
+            const openvdb::Vec3f ks = scene.specular().rgb(i);
+            if (ks[0] > 0.f || ks[1] > 0.f || ks[2] > 0.f) {
+                ++glossy;
+                const long key = std::lround(scene.roughness().grey(i)
+                    / GlossySurfaces::kRoughnessStep);
+                roughness[size_t(std::clamp(key, 0L, long(roughness.size()) - 1))] = 1;
+            }
+        }
+        const size_t P = size_t(options.glossy.controlPoints);
+        const size_t perPoint = c * (2 + size_t(kGroups)) + 8 * (size_t(kGroups) + 1) + 4 + 24;
+        bytes += glossy * P * perPoint + n * 4 * (SweepSchedule::kPatterns + 1);
+        // One kernel per rounded roughness, and up to kMaxClasses rotations.
+        const size_t lobes = size_t(std::count(roughness.begin(), roughness.end(), 1));
+        const size_t classes = std::min<size_t>(GlossySurfaces::kMaxClasses, glossy);
+        bytes += lobes * P * P * 4 + classes * P * 60;
+    }
     if (cache) {
         // The budget, or what every direction's report typically needs if that is less.
         size_t kept = options.visibilityCache;
@@ -604,6 +880,15 @@ RadiositySolver::fingerprint() const
         const int64_t direct[2] = {1, mOptions.directSamples};
         h = hashBytes(direct, sizeof direct, h);
     }
+    if (mImpl->glossy) {
+        // Only glossy solves hash their lobes (older fingerprints unchanged).
+        h = mScene.specular().hash(h);
+        h = mScene.roughness().hash(h);
+        const GlossyOptions& g = mOptions.glossy;
+        const int64_t glossy[4] = {g.controlPoints, int64_t(g.model), int64_t(g.rotation),
+            int64_t(g.fit)};
+        h = hashBytes(glossy, sizeof glossy, h);
+    }
     return hashBytes(&mOptions.occlusionDepth, sizeof(float), h);
 }
 
@@ -629,7 +914,19 @@ RadiositySolver::saveState(SolverState& state) const
                 ? st.gathered[g] : typename decltype(st.gathered)::value_type());
         }
         if (st.mixer) st.mixer->save(state, "anderson.");
+        if (impl.glossy) {
+            put("glossy.spec", st.spec);
+            for (size_t g = 0; g < size_t(kGroups); ++g) {
+                put("glossy.incident" + std::to_string(g), g < st.incident.size()
+                    ? st.incident[g] : typename decltype(st.incident)::value_type());
+            }
+        }
     });
+    if (impl.glossy) {
+        state.put("glossy.share", impl.glossyShare);
+        state.put("glossy.direct", reinterpret_cast<const double*>(impl.glossyDirect.data()),
+            impl.glossyDirect.size() * 3);
+    }
 }
 
 void
@@ -667,17 +964,98 @@ RadiositySolver::restoreState(const SolverState& state)
         if (st.B.size() != n) OPENVDB_THROW(openvdb::ValueError, "checkpoint has no B");
         impl.startFromSource = false;
         if (st.mixer) st.mixer->restore(state, "anderson.");
+        if (impl.glossy) {
+            const size_t m = impl.glossy->size() * impl.glossy->points();
+            auto getGlossy = [&](const std::string& name, auto& v) {
+                const std::vector<Scalar> f = state.get<Scalar>(name);
+                if (!f.empty() && f.size() != m * width) {
+                    OPENVDB_THROW(openvdb::ValueError, "checkpoint's '" << name << "' has "
+                        << f.size() << " values for " << m << " control values");
+                }
+                v.resize(f.size() / width);
+                if (!f.empty()) {
+                    std::memcpy(static_cast<void*>(v.data()), f.data(), f.size() * sizeof(Scalar));
+                }
+            };
+            getGlossy("glossy.spec", st.spec);
+            if (st.spec.size() != m) {
+                OPENVDB_THROW(openvdb::ValueError, "checkpoint has no glossy light");
+            }
+            st.incident.resize(size_t(kGroups));
+            for (size_t g = 0; g < st.incident.size(); ++g) {
+                getGlossy("glossy.incident" + std::to_string(g), st.incident[g]);
+            }
+        }
     });
-    impl.narrowView(mScene.emission());
+    if (impl.glossy) {
+        const size_t m = impl.glossy->size() * impl.glossy->points();
+        impl.glossyShare = state.get<double>("glossy.share");
+        if (!impl.glossyShare.empty() && impl.glossyShare.size() != m) {
+            OPENVDB_THROW(openvdb::ValueError, "checkpoint's glossy shares do not fit the scene");
+        }
+        const std::vector<double> direct = state.get<double>("glossy.direct");
+        if (!direct.empty() && direct.size() != 3 * m) {
+            OPENVDB_THROW(openvdb::ValueError, "checkpoint's glossy direct light does not fit");
+        }
+        impl.glossyDirect.resize(direct.size() / 3);
+        for (size_t e = 0; e < impl.glossyDirect.size(); ++e) {
+            impl.glossyDirect[e] = openvdb::Vec3d(direct[3 * e], direct[3 * e + 1],
+                direct[3 * e + 2]);
+        }
+        impl.applyGlossyShares();
+    }
+    impl.narrowView(mScene);
 }
 
 const std::vector<float>& RadiositySolver::grey() const
 {
-    return mImpl->exact ? mImpl->totalGrey : mImpl->state<float>().B;
+    return mImpl->exact || mImpl->glossy ? mImpl->totalGrey : mImpl->state<float>().B;
 }
 const std::vector<openvdb::Vec3f>& RadiositySolver::rgb() const
 {
-    return mImpl->exact ? mImpl->totalRgb : mImpl->state<openvdb::Vec3f>().B;
+    return mImpl->exact || mImpl->glossy ? mImpl->totalRgb : mImpl->state<openvdb::Vec3f>().B;
+}
+const GlossySurfaces* RadiositySolver::glossy() const { return mImpl->glossy.get(); }
+
+openvdb::Vec3d
+RadiositySolver::sent(size_t i, const openvdb::Vec3d& toward) const
+{
+    const Impl& impl = *mImpl;
+    openvdb::Vec3d v(0.0);
+    impl.withState(mScene.isRgb(), [&](const auto& st) {
+        using T = typename std::decay_t<decltype(st.B)>::value_type;
+        T b = st.B[i];
+        if (impl.exact) b += value<T>(mScene.emission(), i);
+        if (impl.glossy && impl.glossy->glossyOf(i) != GlossySurfaces::kNone) {
+            const size_t P = impl.glossy->points();
+            b += impl.glossy->controlPoints().evaluate(
+                &st.spec[size_t(impl.glossy->glossyOf(i)) * P], toward);
+        }
+        if constexpr (std::is_arithmetic_v<T>) v = openvdb::Vec3d(double(b));
+        else v = openvdb::Vec3d(b[0], b[1], b[2]);
+    });
+    return v;
+}
+
+std::vector<openvdb::Vec3f>
+RadiositySolver::specularRadiosity() const
+{
+    const Impl& impl = *mImpl;
+    std::vector<openvdb::Vec3f> out;
+    if (!impl.glossy) return out;
+    out.assign(mScene.size(), openvdb::Vec3f(0.f));
+    const size_t P = impl.glossy->points();
+    impl.withState(mScene.isRgb(), [&](const auto& st) {
+        for (size_t k = 0; k < impl.glossy->size(); ++k) {
+            const auto e = impl.glossy->exitance(k, &st.spec[k * P]);
+            if constexpr (std::is_arithmetic_v<std::decay_t<decltype(e)>>) {
+                out[impl.glossy->voxel(k)] = openvdb::Vec3f(float(e));
+            } else {
+                out[impl.glossy->voxel(k)] = openvdb::Vec3f(e);
+            }
+        }
+    });
+    return out;
 }
 bool RadiositySolver::exactDirect() const { return mImpl->exact; }
 const Emitters& RadiositySolver::emitters() const { return mImpl->emitters; }
@@ -699,8 +1077,44 @@ RadiositySolver::stats() const
 openvdb::GridBase::Ptr
 RadiositySolver::grid() const
 {
-    return mScene.isRgb() ? makeRadiosityGrid(mScene, rgb(), stats())
-                          : makeRadiosityGrid(mScene, grey(), stats());
+    openvdb::GridBase::Ptr grid = mScene.isRgb() ? makeRadiosityGrid(mScene, rgb(), stats())
+                                                 : makeRadiosityGrid(mScene, grey(), stats());
+    if (mImpl->glossy) {
+        grid->insertMeta(meta::kBrdf, openvdb::StringMetadata(brdfModelName(mOptions.glossy.model)));
+        grid->insertMeta(meta::kControlPoints,
+            openvdb::Int32Metadata(int32_t(mImpl->glossy->points())));
+    }
+    return grid;
+}
+
+openvdb::GridBase::Ptr
+RadiositySolver::specularGrid() const
+{
+    if (!mImpl->glossy) return nullptr;
+    // Only the glossy voxels: a grid active where the lobes are.
+    const std::vector<openvdb::Vec3f> s = specularRadiosity();
+    const GlossySurfaces& gl = *mImpl->glossy;
+    openvdb::GridBase::Ptr out;
+    if (mScene.isRgb()) {
+        auto g = openvdb::Vec3SGrid::create();
+        auto acc = g->getAccessor();
+        for (size_t k = 0; k < gl.size(); ++k) {
+            acc.setValue(mScene.voxels().coord(gl.voxel(k)), s[gl.voxel(k)]);
+        }
+        out = g;
+    } else {
+        auto g = openvdb::FloatGrid::create();
+        auto acc = g->getAccessor();
+        for (size_t k = 0; k < gl.size(); ++k) {
+            acc.setValue(mScene.voxels().coord(gl.voxel(k)), s[gl.voxel(k)][0]);
+        }
+        out = g;
+    }
+    out->setName(names::kSpecularRadiosity);
+    out->setTransform(mScene.transformPtr()->copy());
+    out->setGridClass(openvdb::GRID_UNKNOWN);
+    out->insertMeta(meta::kBrdf, openvdb::StringMetadata(brdfModelName(mOptions.glossy.model)));
+    return out;
 }
 
 std::string
@@ -719,6 +1133,7 @@ RadiositySolver::describe() const
            << (emitters().patches().size() == 1 ? " patch, " : " patches, ")
            << mOptions.directSamples << " shadow rays per voxel)";
     }
+    if (mImpl->glossy) os << ", " << mImpl->glossy->describe();
     return os.str();
 }
 
@@ -734,7 +1149,8 @@ RadiositySolver::visibilityCacheFor(const Scene& scene, const RadiosityOptions& 
 
 openvdb::GridBase::Ptr
 solveRadiosity(const Scene& scene, const RadiosityOptions& options,
-    openvdb::util::NullInterrupter* interrupt, const SolveControl& control)
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
+    openvdb::GridBase::Ptr* specular)
 {
     const bool framed = interrupt && !control.beforeIteration;
     if (framed) interrupt->start("solving radiosity");
@@ -754,6 +1170,14 @@ solveRadiosity(const Scene& scene, const RadiosityOptions& options,
             + std::to_string(solver.directions().size()) + " directions kept ("
             + formatBytes(double(solver.cacheBytes())) + ")");
     }
+    if (control.note && solver.glossy()) {
+        std::ostringstream os;
+        os.precision(3);
+        os << "glossy: " << solver.glossy()->describe() << ", set up in "
+           << solver.glossy()->setupSeconds() << " s";
+        control.note(os.str());
+    }
+    if (specular) *specular = solver.specularGrid();
     return solver.grid();
 }
 

@@ -29,6 +29,7 @@
 #include "vdbrad/DirectLight.h"
 #include "vdbrad/DirectionSet.h"
 #include "vdbrad/FixedPointIteration.h"
+#include "vdbrad/GlossySurfaces.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/OutputGrids.h"
 #include "vdbrad/Precision.h"
@@ -107,6 +108,10 @@ struct RadiosityOptions
     DirectMode direct = DirectMode::Auto;
     /// Shadow rays per voxel for exact direct light (DirectLightOptions::samples), >= 1.
     int directSamples = 16;
+    /// Glossy voxels (a scene with a `specular` grid): their lobes' model and representation.
+    /// They need Jacobi or in-place updates, no Anderson acceleration and the line sweeps; the
+    /// visibility cache is not used for them.
+    GlossyOptions glossy;
 };
 
 class RadiositySolver : public IterativeSolver
@@ -148,6 +153,16 @@ public:
     /// In double precision, these are B rounded to float.
     const std::vector<float>& grey() const;
     const std::vector<openvdb::Vec3f>& rgb() const;
+    /// The glossy voxels' lobes (null for a diffuse scene).
+    const GlossySurfaces* glossy() const;
+    /// @brief What voxel @a i sends along the unit index-space direction @a toward (pi times
+    /// its radiance that way, in radiosity units): its radiosity for a diffuse voxel, its
+    /// diffuse part plus its lobe's light interpolated at @a toward for a glossy one (per
+    /// channel; grey scenes: three equal channels).
+    openvdb::Vec3d sent(size_t i, const openvdb::Vec3d& toward) const;
+    /// The glossy voxels' lobes' exitance (zero elsewhere; empty for a diffuse scene): the
+    /// part of grey() / rgb() that depends on the direction it is seen from.
+    std::vector<openvdb::Vec3f> specularRadiosity() const;
     /// True if the state is double (RadiosityOptions::precision).
     bool doublePrecision() const;
     /// Directions the visibility cache holds, and its bytes (RadiosityOptions::visibilityCache;
@@ -186,8 +201,13 @@ public:
 
     /// Statistics of the solve so far (directions, iterations, residual, seconds, lines).
     SolveStats stats() const;
-    /// The `radiosity` grid of the current solution, with the contract's metadata.
+    /// The `radiosity` grid of the current solution, with the contract's metadata (glossy
+    /// scenes: also vdbrad:brdf, the lobe model, and vdbrad:control_points).
     openvdb::GridBase::Ptr grid() const;
+    /// The `specular_radiosity` grid of a glossy scene (specularRadiosity() on its glossy
+    /// voxels, float or Vec3f as `radiosity`): the part of `radiosity` a renderer shows
+    /// view-dependent (Renderer.h); null for a diffuse scene.
+    openvdb::GridBase::Ptr specularGrid() const;
 
 private:
     struct Impl;
@@ -213,9 +233,10 @@ private:
 /// options.directions = 1000;
 /// openvdb::GridBase::Ptr radiosity = vdbrad::solveRadiosity(scene, options);
 /// @endcode
+/// @param specular  if not null and the scene is glossy, receives specularGrid() (else null)
 openvdb::GridBase::Ptr solveRadiosity(const Scene& scene,
     const RadiosityOptions& options = RadiosityOptions(),
     openvdb::util::NullInterrupter* interrupt = nullptr,
-    const SolveControl& control = SolveControl());
+    const SolveControl& control = SolveControl(), openvdb::GridBase::Ptr* specular = nullptr);
 
 } // namespace vdbrad

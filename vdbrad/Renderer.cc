@@ -1,6 +1,9 @@
 #include "vdbrad/Renderer.h"
 
+#include "vdbrad/Brdf.h"
+#include "vdbrad/ControlPoints.h"
 #include "vdbrad/DirectLight.h"
+#include "vdbrad/GlossySurfaces.h"
 #include "vdbrad/Emitters.h"
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/MeshTracer.h"
@@ -9,6 +12,7 @@
 
 #include "vdbrad/Errors.h"
 #include "vdbrad/GridContract.h"
+#include "vdbrad/OutputGrids.h"
 #include "vdbrad/VoxelMarch.h"
 
 #include <openvdb/math/Stencils.h>
@@ -23,6 +27,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <sstream>
 
 namespace vdbrad {
@@ -179,6 +184,21 @@ struct Renderer::Gather
     std::vector<Vec3d> reflected;
 };
 
+constexpr double kPi = 3.14159265358979323846;
+
+struct Renderer::Glossy
+{
+    BrdfModel model = BrdfModel::Phong;
+    // One lobe per roughness (rounded as the solver rounds it: GlossySurfaces.h), built once:
+    // a lobe's energy compensation costs milliseconds.
+    std::map<long, Brdf> lobes;
+    static long key(float roughness)
+    {
+        return std::lround(double(roughness) / GlossySurfaces::kRoughnessStep);
+    }
+    const Brdf& lobe(float roughness) const { return lobes.at(key(roughness)); }
+};
+
 struct Renderer::Tracer
 {
     explicit Tracer(const Renderer& r)
@@ -199,6 +219,62 @@ struct Renderer::Tracer
         }
         if (r.mGround) mGround.emplace(r.mGround->getConstAccessor());
         if (r.mGather) mDirect.emplace(r.mGather->sampler);
+        if (r.mGather && r.mGlossy) mLobeDirect.emplace(r.mGather->sampler);
+    }
+
+    // What glossy voxel v's lobe reflects towards the eye (index-space unit @a toEye) at the
+    // index-space point p: ks (lamps through the lobe + the lobe's gather), the sample sequences
+    // hashed from @a h. Zero for a diffuse voxel or one seen from behind.
+    Vec3f glossyAt(const Vec3d& p, size_t v, const Vec3d& toEye, uint64_t h)
+    {
+        const Scene& scene = mR.mScene;
+        const Vec3f ks = scene.specular().rgb(v);
+        if (ks == Vec3f(0.f)) return Vec3f(0.f);
+        const Gather& g = *mR.mGather;
+        const SurfacePlanes& planes = g.sampler.planes();
+        const Vec3d n(scene.normal(v));
+        const openvdb::math::Mat3d R = ControlPoints::frame(n);
+        auto local = [&](const Vec3d& w) {   // R^T w
+            return Vec3d(R(0, 0) * w[0] + R(1, 0) * w[1] + R(2, 0) * w[2],
+                R(0, 1) * w[0] + R(1, 1) * w[1] + R(2, 1) * w[2],
+                R(0, 2) * w[0] + R(1, 2) * w[1] + R(2, 2) * w[2]);
+        };
+        const Vec3d wo = local(toEye);
+        if (wo.z() <= 0.0) return Vec3f(0.f);
+        const Brdf& brdf = mR.mGlossy->lobe(scene.roughness().grey(v));
+        const Vec3d c = scene.voxels().coord(v).asVec3d();
+        Vec3d q = p - n * (p - planes.point(v)).dot(n);
+        for (int k = 0; k < 3; ++k) q[k] = std::clamp(q[k], c[k] - 0.5, c[k] + 0.5);
+        // The lamps: pi lobe(l, wo) times the irradiance arriving from l.
+        std::vector<std::pair<Vec3d, Vec3d>> incident;
+        mLobeDirect->incident = &incident;
+        g.sampler.at(q, n, v, mixHash(h + 11), *mLobeDirect);
+        Vec3d sum(0.0);
+        for (const auto& [l, e] : incident) sum += e * (kPi * brdf.value(local(l), wo));
+        // The rest: directions drawn from the lobe, each worth lobe cos / pdf of what it hits.
+        const size_t N = size_t(mR.mOptions.glossyRays);
+        const bool closed = g.regions.region.empty() ? false : g.regions.region[v] != 0;
+        const Vec3d origin = planes.rayOrigin(v, q);
+        Vec3d gathered(0.0);
+        size_t used = 0;
+        const double phase = unitHash(mixHash(h + 12));
+        for (size_t s = 0; s < N; ++s) {
+            const double u1 = (double(s) + unitHash(mixHash(h + 13 + 2 * s))) / double(N);
+            const double u2 = std::fmod(phase + 0.6180339887498949 * double(s), 1.0);
+            double pdf = 0.0;
+            const Vec3d l = brdf.sample(wo, u1, u2, pdf);
+            ++used;
+            if (l.z() <= 0.0 || !(pdf > 0.0)) continue;
+            const Vec3d world(R(0, 0) * l[0] + R(0, 1) * l[1] + R(0, 2) * l[2],
+                R(1, 0) * l[0] + R(1, 1) * l[1] + R(1, 2) * l[2],
+                R(2, 0) * l[0] + R(2, 1) * l[1] + R(2, 2) * l[2]);
+            const uint32_t hit = traceSurface(scene, planes, *mSurface, g.box, uint32_t(v),
+                origin, world);
+            if (hit == kRaySky && closed) { --used; continue; }   // a digitisation crack
+            if (hit < kRayBack) gathered += g.reflected[hit] * (brdf.value(l, wo) * l.z() / pdf);
+        }
+        if (used > 0) sum += gathered / double(used);
+        return Vec3f(float(ks[0] * sum[0]), float(ks[1] * sum[1]), float(ks[2] * sum[2]));
     }
 
     // The final gather at index-space point p seen on voxel v (RenderOptions::gather): the
@@ -274,14 +350,18 @@ struct Renderer::Tracer
                 });
             if (hit < 0) return false;
             p = ir.origin + ir.dir * tHit;
-            value = mR.mGather ? gatherAt(p, size_t(hit), rayHash(eye, dir))
-                               : shade(p, scene.normal(size_t(hit)), hit);
+            value = mR.mOptions.gather > 0 ? gatherAt(p, size_t(hit), rayHash(eye, dir))
+                                           : shade(p, scene.normal(size_t(hit)), hit);
+            if (mR.mGlossy) value += glossyAt(p, size_t(hit), -ir.dir.unit(), rayHash(eye, dir));
             return true;
         }
         value = shade(p, Vec3f(n), -1);
         if (mR.mGather) {
             const int32_t v = nearestVoxel(p, Vec3f(n));
-            if (v >= 0) value = gatherAt(p, size_t(v), rayHash(eye, dir));
+            if (v >= 0 && mR.mOptions.gather > 0) value = gatherAt(p, size_t(v), rayHash(eye, dir));
+            if (v >= 0 && mR.mGlossy) {
+                value += glossyAt(p, size_t(v), -ir.dir.unit(), rayHash(eye, dir));
+            }
         }
         return true;
     }
@@ -409,6 +489,7 @@ struct Renderer::Tracer
     std::optional<openvdb::FloatGrid::ConstAccessor> mGround;
     std::optional<MeshTracer::Accessor> mMesh;
     std::optional<DirectLightSampler::Workspace> mDirect;   // the final gather's
+    std::optional<DirectLightSampler::Workspace> mLobeDirect;   // the glossy lobes' lamps
     std::optional<LevelSetIntersector> mLevelSet;
     std::optional<openvdb::math::BoxStencil<openvdb::FloatGrid>> mStencil;
 };
@@ -432,6 +513,10 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
         || options.directSamples > 65536) {
         OPENVDB_THROW(openvdb::ValueError, "gather rays must be in 0..65536 and direct-light "
             "samples in 1..65536, got " << options.gather << " and " << options.directSamples);
+    }
+    if (options.glossyRays < 0 || options.glossyRays > 65536) {
+        OPENVDB_THROW(openvdb::ValueError, "glossy rays must be in 0..65536, got "
+            << options.glossyRays);
     }
     if (!finite(options.background)) {
         OPENVDB_THROW(openvdb::ValueError, "background has a NaN or infinite value "
@@ -470,7 +555,45 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
         if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled("render set-up");
         mRadiosity = Attribute::sample(*radiosity, mScene.voxels(), names::kRadiosity,
             std::numeric_limits<float>::lowest());
-        if (options.gather > 0) mGather.reset(new Gather(mScene, mRadiosity, options));
+        // Glossy: the lobes' exitance leaves the voxels' values, and is drawn view-dependent.
+        const openvdb::GridBase::ConstPtr specular = findGrid(grids, names::kSpecularRadiosity);
+        const bool glossy = specular && mScene.isGlossy() && options.glossyRays > 0;
+        if (glossy) {
+            if (specular->transform() != mScene.transform()) {
+                OPENVDB_THROW(openvdb::ValueError, "the specular_radiosity grid is not on the "
+                    "transform of the surface '" << mScene.surfaceName() << "': " << advice);
+            }
+            const Attribute lobes = Attribute::sample(*specular, mScene.voxels(),
+                names::kSpecularRadiosity, 0.f);
+            mGlossy.reset(new Glossy);
+            const openvdb::Metadata::ConstPtr model = radiosity->getMetadata<openvdb::StringMetadata>(
+                meta::kBrdf);
+            if (model) mGlossy->model = brdfModelFromName(model->str());
+            for (size_t i = 0; i < mScene.size(); ++i) {
+                if (mScene.specular().rgb(i) == Vec3f(0.f)) continue;
+                const long k = Glossy::key(mScene.roughness().grey(i));
+                if (mGlossy->lobes.count(k)) continue;
+                mGlossy->lobes.emplace(k, Brdf(mGlossy->model, std::clamp(
+                    double(k) * GlossySurfaces::kRoughnessStep, Brdf::kMinRoughness, 1.0)));
+            }
+            if (options.gather > 0 || glossy) {
+                mGather.reset(new Gather(mScene, mRadiosity, options));
+            }
+            std::vector<Vec3f> diffuse(mScene.size());
+            for (size_t i = 0; i < diffuse.size(); ++i) {
+                diffuse[i] = mRadiosity.rgb(i) - lobes.rgb(i);
+            }
+            const bool rgb = mRadiosity.isRgb() || lobes.isRgb();
+            if (rgb) {
+                mRadiosity = Attribute::fromRgb(std::move(diffuse));
+            } else {
+                std::vector<float> grey(diffuse.size());
+                for (size_t i = 0; i < grey.size(); ++i) grey[i] = diffuse[i][0];
+                mRadiosity = Attribute::fromGrey(std::move(grey));
+            }
+        } else if (options.gather > 0) {
+            mGather.reset(new Gather(mScene, mRadiosity, options));
+        }
         if (mScene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
             // The grid the scene was built from: identifyRoles picks it by type and class, and
             // another grid of the file may carry the same name (found by fuzz_scene: looking it

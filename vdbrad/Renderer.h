@@ -68,6 +68,13 @@ struct RenderOptions
     int gather = 0;
     /// Shadow rays per pixel sample for the gather's direct light (>= 1).
     int directSamples = 16;
+    /// Glossy surfaces (a solved file with `specular_radiosity`): rays per pixel sample that
+    /// gather the light a glossy voxel's lobe reflects towards the camera, drawn from the lobe
+    /// (Brdf::sample) and reading the radiosity of what they hit, plus the lamps' light
+    /// through the lobe by directSamples shadow rays: highlights. The voxel's diffuse part is
+    /// shown as for every voxel (its `radiosity` less `specular_radiosity`, or the gather's).
+    /// 0: the lobe's exitance, the same from every direction.
+    int glossyRays = 32;
     /// The mesh the surface was voxelised from (world units, as `vdbrad voxelize` read it), or
     /// none. Rays then find the mesh's triangles instead of the voxels, so outlines are exact
     /// rather than up to a voxel out; what a hit shows is still the voxels' radiosity around it
@@ -171,7 +178,10 @@ private:
     // reflected radiosity B - E per voxel.
     struct Gather;
     std::unique_ptr<Gather> mGather;
-    Attribute mRadiosity;                    // per surface voxel, scene numbering
+    Attribute mRadiosity;                    // per surface voxel, scene numbering (glossy
+                                             // scenes with glossyRays: the diffuse part)
+    struct Glossy;                           // the lobes' model (glossyRays > 0 only)
+    std::unique_ptr<Glossy> mGlossy;
     openvdb::FloatGrid::Ptr mLevelSet;       // level-set scenes only (a shallow copy)
     std::unique_ptr<LevelSetShared> mLevelSetShared;
     std::unique_ptr<MeshShared> mMesh;

@@ -1,5 +1,6 @@
 #include "vdbrad/Scene.h"
 
+#include "vdbrad/Brdf.h"
 #include "vdbrad/Errors.h"
 #include "vdbrad/SurfaceExtraction.h"
 
@@ -37,7 +38,7 @@ Scene::memUsage() const
 {
     return mVoxels.size() * (sizeof(openvdb::Coord) + sizeof(openvdb::Vec3f))
         + size_t(mVoxels.tree().memUsage()) + mAlbedo.memUsage() + mEmission.memUsage()
-        + mEmissionArea.memUsage();
+        + mEmissionArea.memUsage() + mSpecular.memUsage() + mRoughness.memUsage();
 }
 
 namespace {
@@ -70,6 +71,38 @@ normalGridNormals(const openvdb::Vec3SGrid& grid, const VoxelIndex& index)
 
 } // namespace
 
+void
+Scene::setGloss(Attribute specular, Attribute roughness)
+{
+    const size_t n = size();
+    for (size_t i = 0; i < n; ++i) {
+        const openvdb::Vec3f ks = specular.rgb(i), rho = mAlbedo.rgb(i);
+        const float r = roughness.grey(i);
+        for (int c = 0; c < 3; ++c) {
+            if (!std::isfinite(ks[c]) || ks[c] < 0.f) {
+                OPENVDB_THROW(openvdb::ValueError, "specular at voxel "
+                    << formatCoord(mVoxels.coord(i)) << " is " << ks[c]
+                    << " (must be finite and >= 0)");
+            }
+            // A lobe and the diffuse part share the light a voxel receives: more than all of
+            // it would create energy (a closed box would diverge).
+            if (rho[c] + ks[c] > 1.f + 1e-6f) {
+                OPENVDB_THROW(openvdb::ValueError, "albedo + specular at voxel "
+                    << formatCoord(mVoxels.coord(i)) << " is " << rho[c] + ks[c]
+                    << " (must be <= 1)");
+            }
+        }
+        if (!(r >= float(Brdf::kMinRoughness) && r <= 1.f)) {
+            OPENVDB_THROW(openvdb::ValueError, "roughness at voxel "
+                << formatCoord(mVoxels.coord(i)) << " is " << r << " (must be in ["
+                << Brdf::kMinRoughness << ", 1])");
+        }
+        if (specular.isUniform() && roughness.isUniform()) break;   // one value for all
+    }
+    mSpecular = std::move(specular);
+    mRoughness = std::move(roughness);
+}
+
 Scene
 buildScene(const openvdb::GridPtrVec& grids, const SceneOptions& options,
     openvdb::util::NullInterrupter* interrupt)
@@ -89,7 +122,8 @@ buildScene(const openvdb::GridPtrVec& grids, const SceneOptions& options,
         OPENVDB_THROW(openvdb::ValueError, "surface grid '" << surface.getName()
             << "' has no active voxels");
     }
-    for (const auto& g : {roles.albedo, roles.emission, roles.emissionArea}) {
+    for (const auto& g : {roles.albedo, roles.emission, roles.emissionArea, roles.specular,
+             roles.roughness}) {
         if (g) checkSameTransform(*g, surface);
     }
 
@@ -129,9 +163,41 @@ buildScene(const openvdb::GridPtrVec& grids, const SceneOptions& options,
         emissionArea = Attribute::fromGrey(std::move(faces));
     }
 
-    return Scene(surface.transform().copy(), std::move(index), std::move(normals),
+    if (roles.roughness && !roles.specular) {
+        OPENVDB_THROW(openvdb::ValueError, "a 'roughness' grid needs a 'specular' grid (the "
+            "glossy lobe's reflectance)");
+    }
+    if (!(options.defaultRoughness >= float(Brdf::kMinRoughness)
+            && options.defaultRoughness <= 1.f)) {
+        OPENVDB_THROW(openvdb::ValueError, "roughness must be in [" << Brdf::kMinRoughness
+            << ", 1], got " << options.defaultRoughness);
+    }
+    Scene scene(surface.transform().copy(), std::move(index), std::move(normals),
         std::move(albedo), std::move(emission), surface.getName(), roles.surfaceKind,
         std::move(emissionArea));
+    if (roles.specular) {
+        Attribute specular = Attribute::sample(*roles.specular, scene.voxels(), names::kSpecular,
+            0.f, 1.f);
+        Attribute roughness = roles.roughness
+            ? Attribute::sample(*roles.roughness, scene.voxels(), names::kRoughness, 0.f, 1.f)
+            : Attribute(options.defaultRoughness);
+        // Files write roughness 0 for mirrors; no control-point grid resolves lobes sharper
+        // than kMinRoughness, so those are raised to it and counted (the tool says so).
+        if (!roughness.isUniform()) {
+            std::vector<float> r(scene.size());
+            for (size_t i = 0; i < r.size(); ++i) {
+                r[i] = roughness.grey(i);
+                if (r[i] < float(Brdf::kMinRoughness)) {
+                    r[i] = float(Brdf::kMinRoughness);
+                    const openvdb::Vec3f ks = specular.rgb(i);
+                    if (ks[0] > 0.f || ks[1] > 0.f || ks[2] > 0.f) ++scene.mRaisedRoughness;
+                }
+            }
+            roughness = Attribute::fromGrey(std::move(r));
+        }
+        if (!specular.isZero()) scene.setGloss(std::move(specular), std::move(roughness));
+    }
+    return scene;
 }
 
 } // namespace vdbrad

@@ -28,6 +28,9 @@ struct SceneOptions
     std::string surface;
     /// Albedo of every voxel when the file has no `albedo` grid, in [0, 1].
     float defaultAlbedo = 0.5f;
+    /// Roughness of glossy voxels when the file has a `specular` grid and no `roughness` grid,
+    /// in [Brdf::kMinRoughness, 1].
+    float defaultRoughness = 0.5f;
     /// Level sets only: 26 (default) or 6, the connectivity the extracted surface blocks
     /// (see SurfaceExtraction.h).
     int separation = 26;
@@ -60,7 +63,7 @@ public:
     const Attribute& albedo() const { return mAlbedo; }
     const Attribute& emission() const { return mEmission; }
     /// True if any colour attribute is RGB: the solution is then RGB too.
-    bool isRgb() const { return mAlbedo.isRgb() || mEmission.isRgb(); }
+    bool isRgb() const { return mAlbedo.isRgb() || mEmission.isRgb() || mSpecular.isRgb(); }
     /// False if nothing emits: the solution is then zero everywhere.
     bool hasEmission() const { return !mEmission.isZero(); }
     /// Emitting area inside each voxel, in voxel faces (an `emission_area` grid, world units^2,
@@ -68,6 +71,19 @@ public:
     /// emission x this area (Emitters.h). hasEmissionArea() is false when the input has none.
     const Attribute& emissionArea() const { return mEmissionArea; }
     bool hasEmissionArea() const { return !mEmissionArea.isUniform(); }
+
+    /// Glossy lobes (Brdf.h): reflectance ks per voxel (Uniform 0 when the input has no
+    /// `specular` grid: a diffuse scene stores nothing) and roughness. isGlossy(): some voxel
+    /// has ks > 0.
+    const Attribute& specular() const { return mSpecular; }
+    const Attribute& roughness() const { return mRoughness; }
+    bool isGlossy() const { return !mSpecular.isZero(); }
+    /// @brief Give the voxels glossy lobes (arrays in Scene order, or uniform values).
+    /// @throw openvdb::ValueError if a value is not finite, ks < 0, albedo + ks > 1 in some
+    ///        channel, or roughness is outside [Brdf::kMinRoughness, 1] (naming the voxel)
+    void setGloss(Attribute specular, Attribute roughness);
+    /// Glossy voxels whose `roughness` was below Brdf::kMinRoughness and was raised to it.
+    size_t raisedRoughness() const { return mRaisedRoughness; }
 
     /// Name of the grid the surface came from, and how.
     const std::string& surfaceName() const { return mSurfaceName; }
@@ -81,6 +97,10 @@ private:
     VoxelIndex mVoxels;
     std::vector<openvdb::Vec3f> mNormals;
     Attribute mAlbedo, mEmission, mEmissionArea;
+    Attribute mSpecular, mRoughness{0.5f};
+    size_t mRaisedRoughness = 0;
+    friend Scene buildScene(const openvdb::GridPtrVec&, const SceneOptions&,
+        openvdb::util::NullInterrupter*);
     std::string mSurfaceName;
     GridRoles::SurfaceKind mKind = GridRoles::SurfaceKind::None;
 };

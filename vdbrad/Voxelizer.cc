@@ -400,7 +400,7 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
 
     // Materials actually used decide the grid types: RGB only where some colour is not grey.
     const bool hasMaterials = mesh.hasMaterials();
-    bool rgbAlbedo = false, rgbEmission = false;
+    bool rgbAlbedo = false, rgbEmission = false, rgbSpecular = false;
     auto material = [&](uint32_t t) -> const Material* {
         if (!hasMaterials) return nullptr;
         const int32_t m = mesh.triangleMaterials[t];
@@ -409,6 +409,7 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
     for (const Hit& h : hits) {
         if (const Material* m = material(h.triangle)) {
             rgbAlbedo = rgbAlbedo || !isGrey(m->albedo);
+            rgbSpecular = rgbSpecular || !isGrey(m->specular);
         }
     }
     for (const EmitHit& e : emitters) {
@@ -451,10 +452,25 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
         out->setTransform(xform);
         grids.push_back(out);
     };
+    // Glossy materials reflecting more than all (Kd + Ks > 1) are scaled to 1.
+    const bool glossy = hasMaterials && options.specular && mesh.hasSpecular();
+    auto conserved = [&](const Material& m) {
+        return glossy ? 1.f / std::max(1.f, m.reflectance()) : 1.f;
+    };
     if (hasMaterials) {
         colourGrid(names::kAlbedo, rgbAlbedo, false, [&](uint32_t t) {
             const Material* m = material(t);
-            return m ? m->albedo : Vec3f(options.defaultAlbedo);
+            return m ? m->albedo * conserved(*m) : Vec3f(options.defaultAlbedo);
+        });
+    }
+    if (glossy) {
+        colourGrid(names::kSpecular, rgbSpecular, false, [&](uint32_t t) {
+            const Material* m = material(t);
+            return m ? m->specular * conserved(*m) : Vec3f(0.f);
+        });
+        colourGrid(names::kRoughness, false, false, [&](uint32_t t) {
+            const Material* m = material(t);
+            return Vec3f(m ? m->roughness : 0.5f);
         });
     }
     if (!emitters.empty()) {

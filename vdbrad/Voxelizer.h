@@ -46,6 +46,9 @@ struct VoxelizeOptions
     /// Albedo of triangles without a material when the mesh has materials (MTL); a mesh with
     /// none gets no `albedo` grid, and the solver's --albedo applies.
     float defaultAlbedo = 0.5f;
+    /// Write `specular` and `roughness` grids for materials with MTL `Ks` (glossy lobes); false:
+    /// every surface is diffuse.
+    bool specular = true;
     /// Also write the mesh's narrow-band level set `surface` (meaningful for closed meshes).
     bool keepSdf = false;
     /// Refuse meshes whose estimated surface-voxel count exceeds this: the voxelizer peaks at
@@ -56,7 +59,8 @@ struct VoxelizeOptions
 /// @brief Voxelize @a mesh into the grids of a surface scene (README, "Scene contract" (b)):
 /// `normal` (vec3s, world-space unit normals, active on the surface voxels), `albedo` (float, or
 /// vec3s when any material colour is not grey; only if the mesh has materials), `emission`
-/// (likewise; only if something emits), and with keepSdf the level set `surface`.
+/// (likewise; only if something emits), `specular` (float or vec3s) and `roughness` (float) when
+/// a material has `Ks` (and options.specular), and with keepSdf the level set `surface`.
 /// @throw openvdb::ValueError bad options, a mesh with non-finite points or no triangle of
 ///        non-zero area, or an estimated voxel count above maxVoxels (the message gives the
 ///        estimate and the voxel size that would fit)

@@ -1,0 +1,268 @@
+#include "vdbrad/GlossySurfaces.h"
+
+#include "vdbrad/TextFormat.h"
+
+#include <openvdb/Exceptions.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <sstream>
+#include <tuple>
+
+namespace vdbrad {
+
+using openvdb::math::Vec3d;
+
+struct GlossySurfaces::Class
+{
+    uint32_t lobe = 0;
+    Vec3d normal;
+    ControlPoints::Map Q;         // local values -> world values
+    std::vector<double> d;        // the symmetric scaling D_c
+    std::vector<double> share;    // h_c: the direction set's cosine weights on the points
+    std::vector<float> exitance;  // e_c = h_c / sum h_c
+};
+
+namespace {
+
+template<typename T> struct Channels { static constexpr bool kRgb = false; };
+template<> struct Channels<openvdb::Vec3f> { static constexpr bool kRgb = true; };
+template<> struct Channels<openvdb::Vec3d> { static constexpr bool kRgb = true; };
+
+} // namespace
+
+template<typename T>
+void
+GlossySurfaces::product(const Class& c, const ControlBrdf& k, const T* in, T* out,
+    std::vector<T>& a, std::vector<T>& b) const
+{
+    // out = Q K Q^T in over the kernel's support (D_c applied by the callers).
+    const size_t P = points();
+    const ControlPoints::Map& Q = c.Q;
+    a.assign(P, T(0));
+    for (size_t i = 0; i < P; ++i) {
+        for (uint32_t e = Q.start[i]; e < Q.start[i + 1]; ++e) a[Q.source[e]] += in[i] * Q.weight[e];
+    }
+    b.assign(P, T(0));
+    const std::vector<float>& K = k.kernel();
+    const std::vector<uint32_t>& support = k.support();
+    for (const uint32_t o : support) {
+        const float* row = &K[size_t(o) * P];
+        T v(0);
+        for (const uint32_t i : support) v += a[i] * row[i];
+        b[o] = v;
+    }
+    Q.apply(b.data(), out);
+}
+
+GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& directions,
+    const GlossyOptions& options)
+    : mOptions(options)
+    , mPoints(ControlPoints::orderForCount(options.controlPoints))
+    , mScene(scene)
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    const size_t n = scene.size(), P = mPoints.size();
+    mGlossyOf.assign(n, kNone);
+    for (size_t i = 0; i < n; ++i) {
+        const openvdb::Vec3f ks = scene.specular().rgb(i);
+        if (ks[0] > 0.f || ks[1] > 0.f || ks[2] > 0.f) {
+            mGlossyOf[i] = uint32_t(mVoxel.size());
+            mVoxel.push_back(uint32_t(i));
+        }
+    }
+
+    // Lobes: one kernel per rounded roughness.
+    std::map<long, uint32_t> lobeOf;
+    std::vector<uint32_t> lobe(mVoxel.size());
+    std::vector<double> roughness;
+    for (size_t g = 0; g < mVoxel.size(); ++g) {
+        const long key = std::lround(scene.roughness().grey(mVoxel[g]) / kRoughnessStep);
+        auto it = lobeOf.emplace(key, uint32_t(roughness.size())).first;
+        if (it->second == roughness.size()) {
+            roughness.push_back(std::clamp(double(key) * kRoughnessStep, Brdf::kMinRoughness, 1.0));
+        }
+        lobe[g] = it->second;
+    }
+    mLobes.resize(roughness.size());
+    tbb::parallel_for(size_t(0), roughness.size(), [&](size_t l) {
+        mLobes[l].reset(new ControlBrdf(mPoints, Brdf(options.model, roughness[l]), options.fit));
+    });
+
+    // Classes: (normal, lobe), the normals exact while few enough, else rounded to a fine grid.
+    auto keyOf = [&](const openvdb::Vec3f& nrm, uint32_t l) {
+        uint32_t b[3];
+        std::memcpy(b, nrm.asPointer(), sizeof b);
+        return std::make_tuple(b[0], b[1], b[2], l);
+    };
+    std::map<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>, uint32_t> classOf;
+    std::vector<Vec3d> normalOf(mVoxel.size());
+    for (size_t g = 0; g < mVoxel.size(); ++g) {
+        normalOf[g] = Vec3d(scene.normal(mVoxel[g]));
+        classOf.emplace(keyOf(scene.normal(mVoxel[g]), lobe[g]), 0);
+    }
+    if (classOf.size() > kMaxClasses) {
+        const ControlPoints fine(ControlPoints::kMaxOrder);
+        for (size_t g = 0; g < mVoxel.size(); ++g) {
+            const ControlPoints::Weights w = fine.weights(normalOf[g]);
+            const int k = int(std::max_element(w.weight.begin(), w.weight.end())
+                - w.weight.begin());
+            normalOf[g] = fine.point(w.index[size_t(k)]);
+        }
+    }
+    classOf.clear();
+    mClassOf.resize(mVoxel.size());
+    for (size_t g = 0; g < mVoxel.size(); ++g) {
+        auto it = classOf.emplace(keyOf(openvdb::Vec3f(normalOf[g]), lobe[g]),
+            uint32_t(mClasses.size())).first;
+        if (it->second == mClasses.size()) {
+            mClasses.emplace_back();
+            mClasses.back().lobe = lobe[g];
+            mClasses.back().normal = normalOf[g].unit();
+        }
+        mClassOf[g] = it->second;
+    }
+
+    mToward.resize(2 * directions.size());
+    for (size_t k = 0; k < directions.size(); ++k) {
+        mToward[2 * k] = mPoints.weights(directions.unit(k));
+        mToward[2 * k + 1] = mPoints.weights(-directions.unit(k));
+    }
+
+    tbb::parallel_for(size_t(0), mClasses.size(), [&](size_t ci) {
+        Class& c = mClasses[ci];
+        c.Q = mPoints.rotation(ControlPoints::frame(c.normal), options.rotation);
+        // h_c: the cosine weights of the set's directions on this normal's hemisphere, splatted
+        // as the sweeps splat light.
+        c.share.assign(P, 0.0);
+        for (size_t k = 0; k < directions.size(); ++k) {
+            const double cosine = directions.unit(k).dot(c.normal);
+            if (cosine == 0.0) continue;
+            const ControlPoints::Weights& w = toward(k, cosine < 0.0);
+            const double weight = std::abs(cosine) * directions.factor(k);
+            for (int j = 0; j < 3; ++j) c.share[w.index[size_t(j)]] += weight * w.weight[size_t(j)];
+        }
+        double total = 0.0;
+        for (const double h : c.share) total += h;
+        c.exitance.resize(P);
+        for (size_t i = 0; i < P; ++i) c.exitance[i] = float(c.share[i] / total);
+        // Symmetric Sinkhorn: d <- sqrt(d / (K_c (d h))) until d (K_c (d h)) = 1 on the rows
+        // uniform light reaches.
+        const ControlBrdf& K = *mLobes[c.lobe];
+        std::vector<double> x(P), y(P), a, b;
+        product(c, K, c.share.data(), y.data(), a, b);
+        c.d.assign(P, 0.0);
+        for (size_t i = 0; i < P; ++i) c.d[i] = y[i] > 0.0 ? 1.0 / std::sqrt(y[i]) : 0.0;
+        for (int it = 0; it < 1000; ++it) {
+            for (size_t i = 0; i < P; ++i) x[i] = c.d[i] * c.share[i];
+            product(c, K, x.data(), y.data(), a, b);
+            double worst = 0.0;
+            for (size_t i = 0; i < P; ++i) {
+                if (c.d[i] == 0.0) continue;
+                worst = std::max(worst, std::abs(c.d[i] * y[i] - 1.0));
+                c.d[i] = y[i] > 0.0 ? std::sqrt(c.d[i] / y[i]) : 0.0;
+            }
+            if (worst < 1e-7) break;   // the kernel is float
+        }
+    });
+
+    mInvShare.assign(mVoxel.size() * P, 0.f);
+    for (size_t g = 0; g < mVoxel.size(); ++g) setShare(g, nullptr);
+    mSetupSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+GlossySurfaces::~GlossySurfaces() = default;
+
+size_t GlossySurfaces::classes() const { return mClasses.size(); }
+
+void
+GlossySurfaces::setShare(size_t g, const double* share)
+{
+    const size_t P = points();
+    const Class& c = mClasses[mClassOf[g]];
+    if (!share) share = c.share.data();
+    std::vector<double> x(P), r(P), a, b;
+    for (size_t i = 0; i < P; ++i) x[i] = c.d[i] * share[i];
+    product(c, *mLobes[c.lobe], x.data(), r.data(), a, b);
+    double peak = 0.0;
+    for (size_t i = 0; i < P; ++i) peak = std::max(peak, c.d[i] * r[i]);
+    float* inv = &mInvShare[g * P];
+    for (size_t i = 0; i < P; ++i) {
+        const double v = c.d[i] * r[i];
+        inv[i] = v > 1e-6 * peak ? float(1.0 / v) : 0.f;
+    }
+}
+
+template<typename T>
+void
+GlossySurfaces::reflect(size_t g, const T* incident, T* out) const
+{
+    const size_t P = points();
+    const Class& c = mClasses[mClassOf[g]];
+    std::vector<T> x(P), a, b;
+    for (size_t i = 0; i < P; ++i) x[i] = incident[i] * c.d[i];
+    product(c, *mLobes[c.lobe], x.data(), out, a, b);
+    const float* inv = &mInvShare[g * P];
+    const size_t v = mVoxel[g];
+    if constexpr (Channels<T>::kRgb) {
+        const openvdb::Vec3f ks = mScene.specular().rgb(v);
+        for (size_t i = 0; i < P; ++i) {
+            const double s = c.d[i] * inv[i];
+            for (int ch = 0; ch < 3; ++ch) out[i][ch] *= typename T::ValueType(ks[ch] * s);
+        }
+    } else {
+        const double ks = mScene.specular().grey(v);
+        for (size_t i = 0; i < P; ++i) out[i] *= T(ks * c.d[i] * inv[i]);
+    }
+}
+
+template<typename T>
+T
+GlossySurfaces::exitance(size_t g, const T* S) const
+{
+    const Class& c = mClasses[mClassOf[g]];
+    T sum(0);
+    for (size_t i = 0; i < points(); ++i) sum += S[i] * c.exitance[i];
+    return sum;
+}
+
+size_t
+GlossySurfaces::memUsage() const
+{
+    const size_t P = points();
+    size_t bytes = (mGlossyOf.capacity() + mVoxel.capacity() + mClassOf.capacity()) * 4
+        + mInvShare.capacity() * 4 + mToward.capacity() * sizeof(ControlPoints::Weights);
+    for (const auto& l : mLobes) bytes += l->kernel().capacity() * 4;
+    for (const Class& c : mClasses) {
+        bytes += c.Q.source.capacity() * 8 + c.Q.start.capacity() * 4 + P * (8 + 8 + 4)
+;
+    }
+    return bytes;
+}
+
+std::string
+GlossySurfaces::describe() const
+{
+    std::ostringstream os;
+    os << withCommas(size()) << " glossy voxels (" << brdfModelName(mOptions.model) << ", "
+       << points() << " control points, " << lobes() << (lobes() == 1 ? " lobe, " : " lobes, ")
+       << classes() << (classes() == 1 ? " normal class)" : " normal classes)");
+    return os.str();
+}
+
+template void GlossySurfaces::reflect(size_t, const float*, float*) const;
+template void GlossySurfaces::reflect(size_t, const double*, double*) const;
+template void GlossySurfaces::reflect(size_t, const openvdb::Vec3f*, openvdb::Vec3f*) const;
+template void GlossySurfaces::reflect(size_t, const openvdb::Vec3d*, openvdb::Vec3d*) const;
+template float GlossySurfaces::exitance(size_t, const float*) const;
+template double GlossySurfaces::exitance(size_t, const double*) const;
+template openvdb::Vec3f GlossySurfaces::exitance(size_t, const openvdb::Vec3f*) const;
+template openvdb::Vec3d GlossySurfaces::exitance(size_t, const openvdb::Vec3d*) const;
+
+} // namespace vdbrad

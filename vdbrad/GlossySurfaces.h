@@ -1,0 +1,130 @@
+// GlossySurfaces: what the radiosity sweeps need to carry glossy voxels (thesis ch. 5).
+//
+// A glossy voxel reflects rho_d / pi + ks lobe (Brdf.h). Its diffuse part is solved as every
+// voxel's (RadiositySolver.h); its lobe adds, per voxel, the reflected radiance S at the control
+// points (ControlPoints.h, in the world frame), so that what it sends along t is
+//     B_d + S(t),   S(t) = sum_o omega_o(t) S_o,
+// the interpolation weights omega of a sweep direction being the same for every voxel (§5.2.5):
+// one lookup per direction, three loads per sender. A glossy receiver splats what it sees along
+// s onto the points of s, I_i += w_s omega_i(s) L (the local deformation's weights), and at the
+// end of each iteration reflects it:
+//
+//     S = ks (A_c I) / r_v,     A_c = D_c Q_c K Q_c^T D_c,
+//
+//   - K: the lobe's kernel in the local frame (ControlBrdf.h), one per distinct roughness;
+//   - Q_c: the rotation into the frame of the voxel's normal (ControlPoints::rotation: local
+//     values to world values; its transpose moves a measure the other way), one per normal
+//     class c (the normals that occur; beyond kMaxClasses they are rounded to the nearest of
+//     2562 directions, ~2.3 degrees: voxelised and level-set normals repeat a lot);
+//   - D_c: the symmetric (Sinkhorn) scaling that makes A_c h_c = 1, with h_c the points' share of
+//     the direction set's cosine weights for that normal (I for uniform light of value 1). A_c is
+//     symmetric, so that this one condition makes uniform light reflect uniformly and conserves
+//     energy for light from any direction (the discrete lobe reflects exactly ks);
+//   - r_v = A_c h_v: the voxel's own share h_v, measured in the first sweep over the directions
+//     that meet something (closed rooms, as the diffuse part's hit normalisation): a closed box
+//     of uniform glossy material and emission is exact voxel by voxel.
+// The voxel's radiosity (its exitance) is B_d + sum_o e_o S_o, e_c = h_c / sum h_c.
+//
+// Memory: per glossy voxel, P values per channel for S, for each accumulator group's I (8) and
+// P floats for r_v (P = 162: ~6 KB grey); per class, its rotation and scaling (~5 KB); per
+// lobe, K (P^2 floats, 105 KB). A scene without glossy voxels allocates none of it.
+#pragma once
+
+#include "vdbrad/Brdf.h"
+#include "vdbrad/ControlBrdf.h"
+#include "vdbrad/ControlPoints.h"
+#include "vdbrad/DirectionSet.h"
+#include "vdbrad/Scene.h"
+#include "vdbrad/SphericalFit.h"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace vdbrad {
+
+struct GlossyOptions
+{
+    /// Control points per distribution: 12, 42, 162 (the thesis' default), 642 or 2562.
+    int controlPoints = 162;
+    BrdfModel model = BrdfModel::Phong;
+    /// How kernels are rotated into the normals' frames (ControlPoints.h).
+    ControlPoints::RotationKind rotation = ControlPoints::RotationKind::Resampled;
+    /// The kernels' fit (ControlBrdf.h).
+    FitNorm fit = FitNorm::LeastSquares;
+};
+
+class GlossySurfaces
+{
+public:
+    static constexpr uint32_t kNone = UINT32_MAX;
+    /// Distinct normals kept exactly; beyond, normals are rounded (see the file comment).
+    static constexpr size_t kMaxClasses = 4096;
+    /// Roughness is rounded to this step to share kernels.
+    static constexpr double kRoughnessStep = 0.01;
+
+    /// @brief The glossy voxels of @a scene (specular > 0 in some channel), their lobes and
+    /// rotations, and the weights of every direction of @a directions.
+    /// @throw openvdb::ValueError for a bad control-point count
+    GlossySurfaces(const Scene& scene, const DirectionSet& directions,
+        const GlossyOptions& options = GlossyOptions());
+    ~GlossySurfaces();
+
+    /// Glossy voxels, and the control points per distribution.
+    size_t size() const { return mVoxel.size(); }
+    size_t points() const { return mPoints.size(); }
+    const ControlPoints& controlPoints() const { return mPoints; }
+    const GlossyOptions& options() const { return mOptions; }
+    /// The glossy index of scene voxel @a i, or kNone.
+    uint32_t glossyOf(size_t i) const { return mGlossyOf[i]; }
+    /// The scene voxel of glossy voxel @a g.
+    uint32_t voxel(size_t g) const { return mVoxel[g]; }
+    size_t classes() const;
+    size_t lobes() const { return mLobes.size(); }
+    const ControlBrdf& lobe(size_t l) const { return *mLobes[l]; }
+    /// Seconds spent fitting kernels and building the classes.
+    double setupSeconds() const { return mSetupSeconds; }
+
+    /// The interpolation of direction pair @a k's unit direction (@a negative: of its opposite).
+    const ControlPoints::Weights& toward(size_t k, bool negative) const
+    {
+        return mToward[2 * k + (negative ? 1 : 0)];
+    }
+
+    /// @brief Take voxel @a g's measured share of the points, h_v (P values, the splat of the
+    /// cosine weights of the directions that met something); null: the full hemisphere's h_c
+    /// (a voxel open to the sky loses what leaves, as its diffuse part does).
+    void setShare(size_t g, const double* share);
+
+    /// @brief S = ks (A_c I) / r_v for glossy voxel @a g from its splatted light @a incident
+    /// (P values), written to @a out (P values). T: float, double, Vec3f, Vec3d.
+    template<typename T>
+    void reflect(size_t g, const T* incident, T* out) const;
+
+    /// @brief The voxel's lobe's exitance: sum_o e_o S_o.
+    template<typename T>
+    T exitance(size_t g, const T* S) const;
+
+    /// Bytes held, not counting the solver's per-voxel arrays.
+    size_t memUsage() const;
+
+    /// One line: glossy voxels, points, lobes, classes, model.
+    std::string describe() const;
+
+private:
+    struct Class;
+    template<typename T> void product(const Class& c, const ControlBrdf& k, const T* in, T* out,
+        std::vector<T>& a, std::vector<T>& b) const;
+    GlossyOptions mOptions;
+    ControlPoints mPoints;
+    const Scene& mScene;
+    std::vector<uint32_t> mGlossyOf, mVoxel, mClassOf;
+    std::vector<std::unique_ptr<ControlBrdf>> mLobes;
+    std::vector<Class> mClasses;
+    std::vector<ControlPoints::Weights> mToward;
+    std::vector<float> mInvShare;   // per glossy voxel, P values: 1 / r_v (0 where r_v ~ 0)
+    double mSetupSeconds = 0.0;
+};
+
+} // namespace vdbrad
