@@ -167,6 +167,9 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
     ws.weight.resize(patches.size());
     ws.factor.resize(patches.size());
     ws.front.clear();
+    // A voxel no lamp reaches returns before estimating: it must not pass on the arrivals
+    // of the voxel before it.
+    if (ws.incident) ws.incident->clear();
     double total = 0.0;
     const uint32_t room = mRegions ? (*mRegions)[self] : 0;
     for (size_t g = 0; g < patches.size(); ++g) {
