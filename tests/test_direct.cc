@@ -217,6 +217,37 @@ TEST_F(DirectTest, LampOverFloorIsExactAtDefaultSettings)
     }
 }
 
+TEST_F(DirectTest, IncidentDirectionsAddUpToTheIrradianceAndDoNotCarryOver)
+{
+    // Glossy voxels take their direct light with its directions: the pairs add up to the
+    // irradiance, point at the lamp, and a voxel no lamp reaches (the lamp's own voxels) gets
+    // none, even right after a lit one in the same workspace.
+    grids::BuildParams p;
+    p.res = 32;
+    const Scene scene = buildScene(grids::makeLamp(p));
+    const Emitters emitters(scene);
+    const DirectLightSampler sampler(scene, emitters, DirectLightOptions());
+    DirectLightSampler::Workspace ws(sampler);
+    std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>> incident;
+    ws.incident = &incident;
+    size_t lit = 0, dark = 0;
+    for (size_t i = 0; i < scene.size(); ++i) {
+        const openvdb::Vec3d e = sampler.at(scene.voxels().coord(i).asVec3d(),
+            openvdb::Vec3d(scene.normal(i)), i, 7 + i, ws);
+        openvdb::Vec3d sum(0.0);
+        for (const auto& [dir, light] : incident) {
+            sum += light;
+            EXPECT_GT(dir.y(), 0.0);   // the lamp is above everything it lights
+            EXPECT_NEAR(dir.length(), 1.0, 1e-12);
+        }
+        EXPECT_NEAR(sum[0], e[0], 1e-12 * (1.0 + e[0]));
+        if (e[0] > 0.0) ++lit;
+        if (e[0] == 0.0) { EXPECT_TRUE(incident.empty()); ++dark; }
+    }
+    EXPECT_GT(lit, 0u);
+    EXPECT_GT(dark, 0u);
+}
+
 // A lamp narrower than a voxel keeps the columns nearest the axis (found by fuzz_load, which
 // builds every scene at res 4 and 8), and its floor answer still holds.
 TEST_F(DirectTest, LampNarrowerThanAVoxelKeepsItsAxisColumns)
