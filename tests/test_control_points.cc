@@ -1,4 +1,5 @@
 // ControlPoints (thesis §5.2): the icosahedral grid, interpolation, deformation and rotations.
+#include "RandomDirection.h"
 #include "vdbrad/ControlPoints.h"
 
 #include <gtest/gtest.h>
@@ -17,13 +18,7 @@ using vdbrad::ControlPoints;
 
 constexpr double kPi = 3.14159265358979323846;
 
-Vec3d
-randomDirection(std::mt19937_64& rng)
-{
-    std::normal_distribution<double> g;
-    Vec3d v(g(rng), g(rng), g(rng));
-    return v.unit();
-}
+using vdbrad::test::randomDirection;
 
 // Rotation by angle a about the unit axis u (Rodrigues), acting on column vectors.
 Mat3d
@@ -38,22 +33,6 @@ axisAngle(const Vec3d& u, double a)
     m(2, 0) = u.z() * u.x() * t - u.y() * s; m(2, 1) = u.z() * u.y() * t + u.x() * s;
     m(2, 2) = c + u.z() * u.z() * t;
     return m;
-}
-
-Vec3d
-times(const Mat3d& R, const Vec3d& w)
-{
-    Vec3d r;
-    for (int i = 0; i < 3; ++i) r[i] = R(i, 0) * w[0] + R(i, 1) * w[1] + R(i, 2) * w[2];
-    return r;
-}
-
-Vec3d
-timesTransposed(const Mat3d& R, const Vec3d& w)
-{
-    Vec3d r;
-    for (int i = 0; i < 3; ++i) r[i] = R(0, i) * w[0] + R(1, i) * w[1] + R(2, i) * w[2];
-    return r;
 }
 
 // A smooth lobe: exp(kappa (w . axis - 1)) (a von Mises-Fisher shape, width ~ 1/sqrt(kappa)).
@@ -262,7 +241,7 @@ TEST(ControlPoints, SymmetryRotationsAreExactForEveryKind)
             ASSERT_EQ(map.size(), cp.size());
             map.apply(f.data(), g.data());
             for (size_t i = 0; i < cp.size(); ++i) {
-                EXPECT_NEAR(g[i], lobe(timesTransposed(R, cp.point(i)), axis, 4.0), 1e-6)
+                EXPECT_NEAR(g[i], lobe(cp.point(i) * R, axis, 4.0), 1e-6)
                     << "order " << order << " kind " << int(kind);
             }
         }
@@ -294,7 +273,7 @@ TEST(ControlPoints, RotationErrorsAgainstTheRotatedFunction)
                      ControlPoints::RotationKind::Resampled}) {
                 cp.rotation(R, kind).apply(f.data(), g.data());
                 for (size_t i = 0; i < cp.size(); ++i) {
-                    const double exact = lobe(cp.point(i), times(R, axis), kappa);
+                    const double exact = lobe(cp.point(i), R * axis, kappa);
                     worst[k] = std::max(worst[k], std::abs(g[i] - exact));
                 }
                 ++k;
@@ -330,7 +309,7 @@ TEST(ControlPoints, PermutationPairsEveryPointOnceWithANearPartner)
             EXPECT_EQ(sources.size(), cp.size());
             double far = 0.0;
             for (size_t i = 0; i < cp.size(); ++i) {
-                const Vec3d from = times(R, cp.point(map.source[map.start[i]]));
+                const Vec3d from = R * cp.point(map.source[map.start[i]]);
                 far = std::max(far, std::acos(std::min(1.0, from.dot(cp.point(i)))));
             }
             // No catastrophic partner: every value moves by at most one grid spacing.

@@ -1,6 +1,7 @@
 // Glossy surfaces (thesis ch. 5): the lobes' kernels on control points, their normalisation,
 // and the radiosity solver carrying them, against exact references.
 #include "CanonicalScene.h"
+#include "RandomDirection.h"
 #include "vdbrad/Brdf.h"
 #include "vdbrad/ControlBrdf.h"
 #include "vdbrad/GlossySurfaces.h"
@@ -27,12 +28,7 @@ protected:
     static void SetUpTestSuite() { openvdb::initialize(); }
 };
 
-Vec3d
-randomDirection(std::mt19937_64& rng)
-{
-    std::normal_distribution<double> g;
-    return Vec3d(g(rng), g(rng), g(rng)).unit();
-}
+using test::randomDirection;
 
 // The furnace box with glossy walls: albedo rho_d, lobe ks, emission E everywhere.
 Scene

@@ -8,6 +8,7 @@
 // Hanrahan's clamped-cosine coefficients for the zonal integrals, and Eigen's LDLT on the
 // normal equations for the regularised fit.
 
+#include "RandomDirection.h"
 #include "vdbrad/SphericalHarmonics.h"
 
 #include <openvdb/Exceptions.h>
@@ -30,14 +31,7 @@ using openvdb::math::Vec3d;
 
 constexpr double kPi = 3.14159265358979323846;
 
-Vec3d
-randomUnit(std::mt19937_64& rng)
-{
-    std::normal_distribution<double> g;
-    Vec3d v;
-    do { v = Vec3d(g(rng), g(rng), g(rng)); } while (v.length() < 1e-3);
-    return v / v.length();
-}
+using vdbrad::test::randomDirection;
 
 std::vector<double>
 randomCoeffs(size_t n, std::mt19937_64& rng)
@@ -115,7 +109,7 @@ TEST(SphericalHarmonics, LowOrdersMatchClosedFormsWithoutCondonShortley)
     const SphericalHarmonics sh(2);
     std::mt19937_64 rng(1);
     for (int t = 0; t < 20; ++t) {
-        const Vec3d d = randomUnit(rng);
+        const Vec3d d = randomDirection(rng);
         const double x = d.x(), y = d.y(), z = d.z();
         double Y[9];
         sh.basis(d * 3.7, Y);   // not unit on purpose
@@ -175,7 +169,7 @@ TEST(SphericalHarmonics, FitRecoversBandLimitedFunction)
     std::vector<Vec3d> dirs;
     std::vector<double> v;
     for (int k = 0; k < 300; ++k) {   // random samples, 300 > 81 coefficients
-        dirs.push_back(randomUnit(rng));
+        dirs.push_back(randomDirection(rng));
         v.push_back(sh.evaluate(c.data(), dirs.back()));
     }
     const double err = maxAbsDiff(sh.fit(dirs, v), c);
@@ -186,7 +180,7 @@ TEST(SphericalHarmonics, FitRecoversBandLimitedFunction)
     dirs.clear();
     v.clear();
     for (int k = 0; k < 300; ++k) {
-        Vec3d d = randomUnit(rng);
+        Vec3d d = randomDirection(rng);
         if (d.z() < 0.0) d = -d;
         dirs.push_back(d);
         v.push_back(sh.evaluate(c.data(), d));
@@ -209,9 +203,9 @@ TEST(SphericalHarmonics, FitErrorOfLobeDecreasesWithOrder)
     std::vector<Vec3d> train, test;
     std::vector<double> vt;
     for (int k = 0; k < 3000; ++k) {
-        train.push_back(randomUnit(rng));
+        train.push_back(randomDirection(rng));
         vt.push_back(lobe(train.back()));
-        test.push_back(randomUnit(rng));
+        test.push_back(randomDirection(rng));
     }
     std::vector<double> rms;
     for (int L = 0; L <= 12; ++L) {
@@ -243,7 +237,7 @@ TEST(SphericalHarmonics, RegularisedFitSolvesTikhonovNormalEquations)
     std::vector<Vec3d> dirs;
     std::vector<double> v;
     for (int k = 0; k < 200; ++k) {
-        dirs.push_back(randomUnit(rng));
+        dirs.push_back(randomDirection(rng));
         v.push_back(std::exp(dirs.back().x()) * std::sin(3.0 * dirs.back().y()));
     }
     const double lambda = 0.3;
@@ -308,10 +302,10 @@ TEST(SphericalHarmonics, ZonalExpansionEvaluatesTheLobe)
     const std::vector<double> z = SphericalHarmonics::zonalCoefficients(L,
         [](double mu) { return std::pow(std::max(0.0, mu), 5.0); });
     std::mt19937_64 rng(6);
-    const Vec3d a = randomUnit(rng);
+    const Vec3d a = randomDirection(rng);
     const std::vector<double> c = sh.zonal(z, a * 2.5);   // axis need not be unit
     for (int t = 0; t < 50; ++t) {
-        const Vec3d w = randomUnit(rng);
+        const Vec3d w = randomDirection(rng);
         const double mu = w.dot(a);
         double p0 = 1.0, p1 = mu, h = z[0] * std::sqrt(1.0 / (4.0 * kPi));
         for (int l = 1; l <= L; ++l) {
@@ -324,7 +318,7 @@ TEST(SphericalHarmonics, ZonalExpansionEvaluatesTheLobe)
     // Order 10 is above the lobe's degree 5 plus its kink: close to the lobe itself.
     double maxErr = 0.0;
     for (int t = 0; t < 200; ++t) {
-        const Vec3d w = randomUnit(rng);
+        const Vec3d w = randomDirection(rng);
         maxErr = std::max(maxErr, std::abs(sh.evaluate(c.data(), w)
             - std::pow(std::max(0.0, w.dot(a)), 5.0)));
     }
@@ -347,7 +341,7 @@ TEST(SphericalHarmonics, RotationMatchesPointwiseDefinition)
             std::vector<double> g(sh.size());
             sh.rotate(sh.rotation(R), f.data(), g.data());
             for (int t = 0; t < 20; ++t) {
-                const Vec3d w = randomUnit(rng);
+                const Vec3d w = randomDirection(rng);
                 const double e = std::abs(sh.evaluate(g.data(), R * w) - sh.evaluate(f.data(), w));
                 worst = std::max(worst, e);
                 ASSERT_LT(e, 1e-10) << "order " << L;

@@ -15,23 +15,6 @@ using openvdb::math::Vec3d;
 
 namespace {
 
-// R w for a column vector w (spelled out: OpenVDB's Mat3 * Vec3 and Vec3 * Mat3 differ).
-Vec3d
-times(const Mat3d& R, const Vec3d& w)
-{
-    return Vec3d(R(0, 0) * w[0] + R(0, 1) * w[1] + R(0, 2) * w[2],
-        R(1, 0) * w[0] + R(1, 1) * w[1] + R(1, 2) * w[2],
-        R(2, 0) * w[0] + R(2, 1) * w[1] + R(2, 2) * w[2]);
-}
-
-Vec3d
-timesTransposed(const Mat3d& R, const Vec3d& w)
-{
-    return Vec3d(R(0, 0) * w[0] + R(1, 0) * w[1] + R(2, 0) * w[2],
-        R(0, 1) * w[0] + R(1, 1) * w[1] + R(2, 1) * w[2],
-        R(0, 2) * w[0] + R(1, 2) * w[1] + R(2, 2) * w[2]);
-}
-
 // Van Oosterom & Strackee: tan(E / 2) = [a b c] / (1 + a.b + b.c + c.a); a negative triple
 // product (a point just outside by rounding) counts as no area.
 double
@@ -291,7 +274,7 @@ ControlPoints::rotation(const Mat3d& R, RotationKind kind) const
     Map map;
     map.start.assign(1, 0);
     auto resampledRow = [&](size_t i) {
-        const Weights w = weights(timesTransposed(R, mPoints[i]));
+        const Weights w = weights(mPoints[i] * R);
         for (int k = 0; k < 3; ++k) {
             if (w.weight[size_t(k)] == 0.0) continue;
             map.source.push_back(w.index[size_t(k)]);
@@ -306,7 +289,7 @@ ControlPoints::rotation(const Mat3d& R, RotationKind kind) const
     }
 
     std::vector<Vec3d> rotated(n);
-    for (size_t j = 0; j < n; ++j) rotated[j] = times(R, mPoints[j]);
+    for (size_t j = 0; j < n; ++j) rotated[j] = R * mPoints[j];
 
     if (kind == RotationKind::Continuous) {
         std::vector<std::vector<std::pair<uint32_t, double>>> rows(n);

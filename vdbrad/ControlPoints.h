@@ -136,7 +136,7 @@ public:
     std::vector<Sample> quadrature(int cuts) const;
 
     /// @brief The map taking the values of f to those of g(w) = f(R^T w), for a proper rotation
-    /// @a R (applied to column vectors: w' = R w).
+    /// @a R (applied to column vectors: w' = R w, OpenVDB's R * w; R^T w is w * R).
     /// @throw openvdb::ValueError if @a R is not a rotation (orthonormal, det +1, to 1e-6)
     Map rotation(const openvdb::math::Mat3d& R, RotationKind kind) const;
 

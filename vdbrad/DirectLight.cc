@@ -293,7 +293,8 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
 
 DirectIrradiance
 directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLightOptions& options,
-    const std::vector<uint32_t>* regions, openvdb::util::NullInterrupter* interrupt)
+    const std::vector<uint32_t>* regions, openvdb::util::NullInterrupter* interrupt,
+    const IncidentSink* incident)
 {
     const DirectLightSampler sampler(scene, emitters, options, regions);
     const auto t0 = std::chrono::steady_clock::now();
@@ -309,9 +310,13 @@ directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLight
     tbb::parallel_for(Range(0, n, 64), [&](const Range& r) {
         if (cancelled) return;
         DirectLightSampler::Workspace ws(sampler);
+        std::vector<std::pair<Vec3d, Vec3d>> pairs;
         for (size_t i = r.begin(); i != r.end(); ++i) {
+            const bool wanted = incident && incident->wants(i);
+            ws.incident = wanted ? &pairs : nullptr;
             out.irradiance[i] = openvdb::Vec3f(sampler.at(scene.voxels().coord(i).asVec3d(),
                 Vec3d(scene.normal(i)), i, mixHash(options.seed ^ mixHash(uint64_t(i))), ws));
+            if (wanted) incident->take(i, pairs);
         }
         rays += ws.rays;
         factors += ws.factors;

@@ -34,6 +34,7 @@
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
+#include <functional>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -132,6 +133,16 @@ struct DirectIrradiance
     double seconds = 0.0;
 };
 
+/// Where a voxel's direct light comes from (DirectLightSampler::Workspace::incident's pairs),
+/// for the voxels that ask: wants(i) selects them, take(i, pairs) receives each one's (called
+/// from several threads, once per selected voxel).
+struct IncidentSink
+{
+    std::function<bool(size_t)> wants;
+    std::function<void(size_t, const std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>>&)>
+        take;
+};
+
 /// @brief D(x) for every voxel of @a scene from @a emitters (see the file comment).
 /// @param regions  optional, per voxel, the closed cavity it faces (Enclosure.h, 0: outside): a
 ///        voxel facing a closed room takes light only from patches facing the same room, as the
@@ -139,9 +150,10 @@ struct DirectIrradiance
 ///        edge voxel's hemisphere pokes out through its own cube: a digitisation artefact)
 /// @throw openvdb::ValueError if options.samples < 1; vdbrad::Cancelled if @a interrupt asks
 ///        to stop
+/// @param incident  optional: also where the selected voxels' light comes from (glossy voxels)
 DirectIrradiance directIrradiance(const Scene& scene, const Emitters& emitters,
     const DirectLightOptions& options = DirectLightOptions(),
     const std::vector<uint32_t>* regions = nullptr,
-    openvdb::util::NullInterrupter* interrupt = nullptr);
+    openvdb::util::NullInterrupter* interrupt = nullptr, const IncidentSink* incident = nullptr);
 
 } // namespace vdbrad

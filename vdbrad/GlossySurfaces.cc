@@ -83,11 +83,9 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
     std::vector<uint32_t> lobe(mVoxel.size());
     std::vector<double> roughness;
     for (size_t g = 0; g < mVoxel.size(); ++g) {
-        const long key = std::lround(scene.roughness().grey(mVoxel[g]) / kRoughnessStep);
+        const long key = roughnessKey(scene.roughness().grey(mVoxel[g]));
         auto it = lobeOf.emplace(key, uint32_t(roughness.size())).first;
-        if (it->second == roughness.size()) {
-            roughness.push_back(std::clamp(double(key) * kRoughnessStep, Brdf::kMinRoughness, 1.0));
-        }
+        if (it->second == roughness.size()) roughness.push_back(roughnessOf(key));
         lobe[g] = it->second;
     }
     mLobes.resize(roughness.size());
@@ -180,6 +178,12 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
 GlossySurfaces::~GlossySurfaces() = default;
 
 size_t GlossySurfaces::classes() const { return mClasses.size(); }
+
+double
+GlossySurfaces::roughnessOf(long key)
+{
+    return std::clamp(double(key) * kRoughnessStep, Brdf::kMinRoughness, 1.0);
+}
 
 void
 GlossySurfaces::setShare(size_t g, const double* share)

@@ -37,6 +37,7 @@
 #include "vdbrad/Scene.h"
 #include "vdbrad/SphericalFit.h"
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -61,8 +62,11 @@ public:
     static constexpr uint32_t kNone = UINT32_MAX;
     /// Distinct normals kept exactly; beyond, normals are rounded (see the file comment).
     static constexpr size_t kMaxClasses = 4096;
-    /// Roughness is rounded to this step to share kernels.
+    /// Roughness is rounded to this step to share kernels: roughnessKey() numbers the steps,
+    /// roughnessOf() gives a step's roughness (in [Brdf::kMinRoughness, 1]).
     static constexpr double kRoughnessStep = 0.01;
+    static long roughnessKey(double roughness) { return std::lround(roughness / kRoughnessStep); }
+    static double roughnessOf(long key);
 
     /// @brief The glossy voxels of @a scene (specular > 0 in some channel), their lobes and
     /// rotations, and the weights of every direction of @a directions.

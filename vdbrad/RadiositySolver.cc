@@ -8,7 +8,6 @@
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/Precision.h"
 #include "vdbrad/RayCastVisibility.h"
-#include "vdbrad/SampleHash.h"
 #include "vdbrad/SweepSchedule.h"
 #include "vdbrad/TextFormat.h"
 #include "vdbrad/VisibilityCache.h"
@@ -81,14 +80,11 @@ struct RadiositySolver::Impl
     std::vector<float> totalGrey;
     std::vector<openvdb::Vec3f> totalRgb;
     // Glossy voxels (GlossySurfaces.h; null for a diffuse scene, which allocates none of
-    // this): per pattern, each position's rank among the glossy voxels in the pattern's order
-    // (a group's splats and its senders' lobes are laid out in that order, so that a sweep
-    // walks them sequentially rather than at random)
-    // and each glossy voxel's rank; the first iteration's splatted hit weights per group and
-    // the measured shares (kept for checkpoints); with exact direct light, each glossy voxel's
-    // direct light splatted on the points (per channel).
+    // this): per pattern, each position's glossy index; the first iteration's splatted hit
+    // weights per group and the measured shares (kept for checkpoints); with exact direct
+    // light, each glossy voxel's direct light splatted on the points (per channel).
     std::unique_ptr<GlossySurfaces> glossy;
-    std::array<std::vector<uint32_t>, SweepSchedule::kPatterns> glossyAt, glossyRank;
+    std::array<std::vector<uint32_t>, SweepSchedule::kPatterns> glossyAt;
     std::vector<std::vector<double>> glossyHits;
     std::vector<double> glossyShare;
     std::vector<openvdb::Vec3d> glossyDirect;
@@ -232,6 +228,17 @@ struct RadiositySolver::Engine
         }
         replay<Hits>(sweep, sigma.data(), c.data(), readers, count, Bp.data(), G.data(),
             Hits ? H->data() : static_cast<Scalar*>(nullptr), uint32_t(G.size()));
+    }
+
+    // out[0, width) += the accumulators' values [at, at + width), in group order (the glossy
+    // voxels' arrays are in glossy order in every group, unlike SweepSchedule::sum's).
+    template<typename ArraysT, typename OutT>
+    static void sumGroups(const ArraysT& groups, size_t at, size_t width, OutT* out)
+    {
+        for (const auto& a : groups) {
+            if (a.empty()) continue;
+            for (size_t o = 0; o < width; ++o) out[o] += OutT(a[at + o]);
+        }
     }
 
     // What a group's sweeps read and write for glossy voxels: their glossy indices (in the
@@ -401,18 +408,10 @@ struct RadiositySolver::Engine
             auto inPhase = [&](int g) {
                 return phases == 1 || g / SweepSchedule::kPatterns == phase;
             };
-            // B in each pattern's order, so that the sweeps read it sequentially; likewise the
-            // glossy voxels' lobes.
-            std::array<std::vector<ValueT>, SweepSchedule::kPatterns> ordered, specOrdered;
+            // B in each pattern's order, so that the sweeps read it sequentially.
+            std::array<std::vector<ValueT>, SweepSchedule::kPatterns> ordered;
             for (size_t p = 0; p < ordered.size(); ++p) {
-                if (schedule.pattern(p).empty()) continue;
-                schedule.toPatternOrder(p, source, ordered[p]);
-                if (!glossy) continue;
-                specOrdered[p].resize(glossyN * P);
-                const std::vector<uint32_t>& rank = impl.glossyRank[p];
-                for (size_t k = 0; k < glossyN; ++k) {
-                    std::copy_n(&st.spec[k * P], P, &specOrdered[p][size_t(rank[k]) * P]);
-                }
+                if (!schedule.pattern(p).empty()) schedule.toPatternOrder(p, source, ordered[p]);
             }
             schedule.forEachGroup(progress, "radiosity solve", inPhase, [&](int g) {
                 std::vector<AccT>& G = gathered[size_t(g)];
@@ -427,7 +426,7 @@ struct RadiositySolver::Engine
                     std::vector<AccT>& I = st.incident[size_t(g)];
                     I.assign(glossyN * P, openvdb::zeroVal<AccT>());
                     lanes.at = impl.glossyAt[SweepSchedule::patternOf(g)].data();
-                    lanes.spec = specOrdered[SweepSchedule::patternOf(g)].data();
+                    lanes.spec = st.spec.data();
                     lanes.incident = I.data();
                     lanes.points = P;
                     if (H) {
@@ -463,14 +462,7 @@ struct RadiositySolver::Engine
                         [&](const tbb::blocked_range<size_t>& r) {
                             for (size_t k = r.begin(); k != r.end(); ++k) {
                                 if (impl.regions.region[glossy->voxel(k)] == 0) continue;
-                                double* share = &impl.glossyShare[k * P];
-                                for (int gr = 0; gr < kGroups; ++gr) {
-                                    const auto& h = impl.glossyHits[size_t(gr)];
-                                    if (h.empty()) continue;
-                                    const size_t at = size_t(impl.glossyRank[
-                                        SweepSchedule::patternOf(gr)][k]) * P;
-                                    for (size_t o = 0; o < P; ++o) share[o] += h[at + o];
-                                }
+                                sumGroups(impl.glossyHits, k * P, P, &impl.glossyShare[k * P]);
                             }
                         });
                     impl.applyGlossyShares();
@@ -504,13 +496,7 @@ struct RadiositySolver::Engine
                         std::vector<ValueT> In(P);
                         for (size_t k = r.begin(); k != r.end(); ++k) {
                             std::fill(I.begin(), I.end(), openvdb::zeroVal<WideT>());
-                            for (int gr = 0; gr < kGroups; ++gr) {
-                                const auto& a = st.incident[size_t(gr)];
-                                if (a.empty()) continue;
-                                const size_t at = size_t(impl.glossyRank[
-                                    SweepSchedule::patternOf(gr)][k]) * P;
-                                for (size_t o = 0; o < P; ++o) I[o] += WideT(a[at + o]);
-                            }
+                            sumGroups(st.incident, k * P, P, I.data());
                             if (!impl.glossyDirect.empty()) {
                                 // Irradiance to a splat: times the voxel's cosine sum 1 / invZ.
                                 const double z = 1.0 / impl.invZ[glossy->voxel(k)];
@@ -614,12 +600,8 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
             const std::vector<uint32_t>& order = impl.schedule->pattern(p).order;
             if (order.empty()) continue;
             impl.glossyAt[p].resize(order.size());
-            impl.glossyRank[p].resize(impl.glossy->size());
-            uint32_t rank = 0;
             for (size_t x = 0; x < order.size(); ++x) {
-                const uint32_t k = impl.glossy->glossyOf(order[x]);
-                impl.glossyAt[p][x] = k == GlossySurfaces::kNone ? k : rank;
-                if (k != GlossySurfaces::kNone) impl.glossyRank[p][k] = rank++;
+                impl.glossyAt[p][x] = impl.glossy->glossyOf(order[x]);
             }
         }
     }
@@ -677,8 +659,26 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
     const size_t n = mScene.size();
     DirectLightOptions d;
     d.samples = mOptions.directSamples;
+    // Glossy voxels also need where their direct light comes from: the estimate's arrivals,
+    // splatted on the points (per unit of irradiance; iterate() scales by the voxel's cosine
+    // sum as the sweeps' splats are).
+    IncidentSink sink;
+    if (impl.glossy) {
+        const GlossySurfaces& gl = *impl.glossy;
+        const size_t P = gl.points();
+        impl.glossyDirect.assign(gl.size() * P, openvdb::Vec3d(0.0));
+        sink.wants = [&gl](size_t i) { return gl.glossyOf(i) != GlossySurfaces::kNone; };
+        sink.take = [&](size_t i, const std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>>& in) {
+            openvdb::Vec3d* splat = &impl.glossyDirect[size_t(gl.glossyOf(i)) * P];
+            for (const auto& [dir, light] : in) {
+                const ControlPoints::Weights w = gl.controlPoints().weights(dir);
+                for (int j = 0; j < 3; ++j) splat[w.index[j]] += light * w.weight[j];
+            }
+        };
+    }
     impl.direct = directIrradiance(mScene, impl.emitters, d,
-        impl.regions.cavities > 0 ? &impl.regions.region : nullptr, interrupt);
+        impl.regions.cavities > 0 ? &impl.regions.region : nullptr, interrupt,
+        impl.glossy ? &sink : nullptr);
     const std::vector<openvdb::Vec3f>& D = impl.direct.irradiance;
     if (mScene.isRgb()) {
         std::vector<openvdb::Vec3f> v(n);
@@ -688,34 +688,6 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
         std::vector<float> v(n);
         for (size_t i = 0; i < n; ++i) v[i] = mScene.albedo().grey(i) * D[i][0];
         impl.reflected = Attribute::fromGrey(std::move(v));
-    }
-    if (impl.glossy) {
-        // Glossy voxels need where their direct light comes from: the same estimate, its
-        // arrivals splatted on the points (per unit of irradiance; iterate() scales by the
-        // voxel's cosine sum as the sweeps' splats are).
-        const GlossySurfaces& gl = *impl.glossy;
-        const size_t P = gl.points();
-        impl.glossyDirect.assign(gl.size() * P, openvdb::Vec3d(0.0));
-        DirectLightSampler sampler(mScene, impl.emitters, d,
-            impl.regions.cavities > 0 ? &impl.regions.region : nullptr);
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, gl.size(), 16),
-            [&](const tbb::blocked_range<size_t>& r) {
-                DirectLightSampler::Workspace ws(sampler);
-                std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>> incident;
-                ws.incident = &incident;
-                for (size_t k = r.begin(); k != r.end(); ++k) {
-                    const size_t i = gl.voxel(k);
-                    sampler.at(mScene.voxels().coord(i).asVec3d(),
-                        openvdb::Vec3d(mScene.normal(i)), i,
-                        mixHash(d.seed ^ mixHash(uint64_t(i))), ws);
-                    for (const auto& [dir, light] : incident) {
-                        const ControlPoints::Weights w = gl.controlPoints().weights(dir);
-                        for (int j = 0; j < 3; ++j) {
-                            impl.glossyDirect[k * P + w.index[j]] += light * w.weight[j];
-                        }
-                    }
-                }
-            });
     }
     impl.directReady = true;
     if (!impl.startFromSource) return;
@@ -834,8 +806,7 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
             const openvdb::Vec3f ks = scene.specular().rgb(i);
             if (ks[0] > 0.f || ks[1] > 0.f || ks[2] > 0.f) {
                 ++glossy;
-                const long key = std::lround(scene.roughness().grey(i)
-                    / GlossySurfaces::kRoughnessStep);
+                const long key = GlossySurfaces::roughnessKey(scene.roughness().grey(i));
                 roughness[size_t(std::clamp(key, 0L, long(roughness.size()) - 1))] = 1;
             }
         }

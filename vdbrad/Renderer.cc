@@ -192,11 +192,10 @@ struct Renderer::Glossy
     // One lobe per roughness (rounded as the solver rounds it: GlossySurfaces.h), built once:
     // a lobe's energy compensation costs milliseconds.
     std::map<long, Brdf> lobes;
-    static long key(float roughness)
+    const Brdf& lobe(float roughness) const
     {
-        return std::lround(double(roughness) / GlossySurfaces::kRoughnessStep);
+        return lobes.at(GlossySurfaces::roughnessKey(roughness));
     }
-    const Brdf& lobe(float roughness) const { return lobes.at(key(roughness)); }
 };
 
 struct Renderer::Tracer
@@ -234,11 +233,7 @@ struct Renderer::Tracer
         const SurfacePlanes& planes = g.sampler.planes();
         const Vec3d n(scene.normal(v));
         const openvdb::math::Mat3d R = ControlPoints::frame(n);
-        auto local = [&](const Vec3d& w) {   // R^T w
-            return Vec3d(R(0, 0) * w[0] + R(1, 0) * w[1] + R(2, 0) * w[2],
-                R(0, 1) * w[0] + R(1, 1) * w[1] + R(2, 1) * w[2],
-                R(0, 2) * w[0] + R(1, 2) * w[1] + R(2, 2) * w[2]);
-        };
+        auto local = [&](const Vec3d& w) { return w * R; };   // R^T w
         const Vec3d wo = local(toEye);
         if (wo.z() <= 0.0) return Vec3f(0.f);
         const Brdf& brdf = mR.mGlossy->lobe(scene.roughness().grey(v));
@@ -265,9 +260,7 @@ struct Renderer::Tracer
             const Vec3d l = brdf.sample(wo, u1, u2, pdf);
             ++used;
             if (l.z() <= 0.0 || !(pdf > 0.0)) continue;
-            const Vec3d world(R(0, 0) * l[0] + R(0, 1) * l[1] + R(0, 2) * l[2],
-                R(1, 0) * l[0] + R(1, 1) * l[1] + R(1, 2) * l[2],
-                R(2, 0) * l[0] + R(2, 1) * l[1] + R(2, 2) * l[2]);
+            const Vec3d world = R * l;
             const uint32_t hit = traceSurface(scene, planes, *mSurface, g.box, uint32_t(v),
                 origin, world);
             if (hit == kRaySky && closed) { --used; continue; }   // a digitisation crack
@@ -558,6 +551,8 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
         // Glossy: the lobes' exitance leaves the voxels' values, and is drawn view-dependent.
         const openvdb::GridBase::ConstPtr specular = findGrid(grids, names::kSpecularRadiosity);
         const bool glossy = specular && mScene.isGlossy() && options.glossyRays > 0;
+        // The gather reads the total radiosity (its `reflected`): made before the lobes leave.
+        if (options.gather > 0 || glossy) mGather.reset(new Gather(mScene, mRadiosity, options));
         if (glossy) {
             if (specular->transform() != mScene.transform()) {
                 OPENVDB_THROW(openvdb::ValueError, "the specular_radiosity grid is not on the "
@@ -571,13 +566,9 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
             if (model) mGlossy->model = brdfModelFromName(model->str());
             for (size_t i = 0; i < mScene.size(); ++i) {
                 if (mScene.specular().rgb(i) == Vec3f(0.f)) continue;
-                const long k = Glossy::key(mScene.roughness().grey(i));
+                const long k = GlossySurfaces::roughnessKey(mScene.roughness().grey(i));
                 if (mGlossy->lobes.count(k)) continue;
-                mGlossy->lobes.emplace(k, Brdf(mGlossy->model, std::clamp(
-                    double(k) * GlossySurfaces::kRoughnessStep, Brdf::kMinRoughness, 1.0)));
-            }
-            if (options.gather > 0 || glossy) {
-                mGather.reset(new Gather(mScene, mRadiosity, options));
+                mGlossy->lobes.emplace(k, Brdf(mGlossy->model, GlossySurfaces::roughnessOf(k)));
             }
             std::vector<Vec3f> diffuse(mScene.size());
             for (size_t i = 0; i < diffuse.size(); ++i) {
@@ -591,8 +582,6 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
                 for (size_t i = 0; i < grey.size(); ++i) grey[i] = diffuse[i][0];
                 mRadiosity = Attribute::fromGrey(std::move(grey));
             }
-        } else if (options.gather > 0) {
-            mGather.reset(new Gather(mScene, mRadiosity, options));
         }
         if (mScene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
             // The grid the scene was built from: identifyRoles picks it by type and class, and
