@@ -667,8 +667,12 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
         const GlossySurfaces& gl = *impl.glossy;
         const size_t P = gl.points();
         impl.glossyDirect.assign(gl.size() * P, openvdb::Vec3d(0.0));
-        sink.wants = [&gl](size_t i) { return gl.glossyOf(i) != GlossySurfaces::kNone; };
-        sink.take = [&](size_t i, const std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>>& in) {
+        // Captures by value or of objects that outlive the call: the sink runs after this block.
+        const GlossySurfaces* glp = &gl;
+        sink.wants = [glp](size_t i) { return glp->glossyOf(i) != GlossySurfaces::kNone; };
+        sink.take = [glp, P, &impl](size_t i,
+                        const std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>>& in) {
+            const GlossySurfaces& gl = *glp;
             openvdb::Vec3d* splat = &impl.glossyDirect[size_t(gl.glossyOf(i)) * P];
             for (const auto& [dir, light] : in) {
                 const ControlPoints::Weights w = gl.controlPoints().weights(dir);
