@@ -6,8 +6,9 @@
 //   bench_glossy ops           time per operation (query, splat, scale, add, rotate) of one
 //                              distribution, both representations at matched sizes
 //   bench_glossy solve RES D   the glossy Cornell box (samples/meshes/glossy_cornell.obj) at RES
-//                              voxels, D directions: diffuse, glossy blocks, everything glossy;
-//                              seconds, iterations and the solver's memory
+//                              voxels, D directions: diffuse, diffuse with the blocks' Ks in
+//                              their albedo (same energy), glossy blocks, everything glossy;
+//                              seconds, iterations and the solver's memory estimate
 //
 // Errors are relative to the lobe's peak over a 20,480-direction validation set of the upper
 // hemisphere (never a fit sample). Times: best of 3 (BenchTiming.h).
@@ -20,6 +21,7 @@
 #include "vdbrad/SphericalHarmonics.h"
 #include "vdbrad/vdbrad.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -253,12 +255,32 @@ runSolve(int res, int directions)
         "wall s", "s/iter", "memory MB", "ratio");
     double base = 0.0;
     size_t baseMemory = 0;
-    for (int mode = 0; mode < 3; ++mode) {
+    double sameAlbedo = 0.0;
+    for (int mode = 0; mode < 4; ++mode) {
         VoxelizeOptions vo;
         vo.resolution = res;
-        vo.specular = mode == 1;
-        Scene scene = buildScene(voxelizeMesh(m, vo));
-        if (mode == 2) {
+        vo.specular = mode == 1 || mode == 2;
+        openvdb::GridPtrVec grids = voxelizeMesh(m, vo);
+        if (mode == 1) {
+            // The blocks' Ks folded into their diffuse albedo: the same energy in every bounce,
+            // so the same number of iterations as the glossy solve needs (its baseline).
+            auto albedo = openvdb::ConstPtrCast<openvdb::Vec3SGrid>(
+                openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(findGrid(grids, "albedo")));
+            auto ks = openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(findGrid(grids, "specular"));
+            if (!albedo || !ks) {
+                std::fprintf(stderr, "bench_glossy: the voxelizer's albedo/specular are not RGB\n");
+                return 1;
+            }
+            auto acc = albedo->getAccessor();
+            for (auto it = ks->cbeginValueOn(); it; ++it) {
+                acc.setValue(it.getCoord(), acc.getValue(it.getCoord()) + *it);
+            }
+            grids.erase(std::remove_if(grids.begin(), grids.end(), [](const auto& g) {
+                return g->getName() == "specular" || g->getName() == "roughness";
+            }), grids.end());
+        }
+        Scene scene = buildScene(grids);
+        if (mode == 3) {
             // Everything glossy: a lobe of 0.2 on top of each wall's albedo (whites: 0.93).
             scene.setGloss(Attribute(0.2f), Attribute(0.5f));
         }
@@ -274,14 +296,21 @@ runSolve(int res, int directions)
         const auto solver = bench::solved<RadiositySolver>(took, scene, o);
         const double perIteration = took.wall / solver->iterationCount();
         if (mode == 0) { base = took.wall; baseMemory = memory; }
-        const char* names[] = {"diffuse", "glossy blocks (MTL Ks/Ns)", "everything glossy"};
+        if (mode == 1) sameAlbedo = took.wall;
+        const char* names[] = {"diffuse", "diffuse, blocks Kd + Ks", "glossy blocks (MTL Ks/Ns)",
+            "everything glossy"};
         std::printf("%-26s %9zu %9zu %6d %9.2f %9.3f %11.1f %7.2f\n", names[mode], scene.size(),
             glossy, solver->iterationCount(), took.wall, perIteration, memory / 1048576.0,
             took.wall / base);
-        if (mode > 0 && solver->glossy()) {
-            std::printf("    %s; setup %.2f s; memory %.2fx diffuse\n",
+        if (solver->glossy()) {
+            char same[64] = "";
+            if (mode == 2) {
+                std::snprintf(same, sizeof same, "; %.2fx the diffuse solve of Kd + Ks",
+                    took.wall / sameAlbedo);
+            }
+            std::printf("    %s; setup %.2f s; memory %.2fx diffuse%s\n",
                 solver->glossy()->describe().c_str(), solver->glossy()->setupSeconds(),
-                double(memory) / double(baseMemory));
+                double(memory) / double(baseMemory), same);
         }
     }
     return 0;

@@ -227,7 +227,7 @@ commands()
                     "blinn-phong or ggx"}.oneOf({"phong", "blinn-phong", "ggx"}),
                 OptionSpec{"control-points", OptionType::Int, "162", "642",
                     "points of each glossy voxel's radiance distribution: 12, 42, 162, 642 or "
-                    "2562 (finer lobes, more memory: ~40 bytes per point and glossy voxel)"}
+                    "2562 (finer lobes, more memory: ~110 bytes per point and glossy voxel in RGB)"}
                     .oneOf({"12", "42", "162", "642", "2562"}),
                 OptionSpec{"glossy-rotation", OptionType::String, "resampled", "permutation",
                     "how lobes are turned to each normal: resampled, continuous or permutation "

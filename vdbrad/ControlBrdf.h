@@ -46,6 +46,9 @@ public:
     /// Points whose row or column of K is not zero (the upper hemisphere and the horizon's
     /// band): the solver's products run over these only.
     const std::vector<uint32_t>& support() const { return mSupport; }
+    /// @brief out = K in restricted to the support: @a in and @a out hold @a width columns
+    /// (channels) of support().size() values each, in support order. S: float or double.
+    template<typename S> void apply(const S* in, S* out, int width) const;
 
     /// @brief The fitted pi lobe(wi, wo): sum_oi omega_o(wo) K_oi omega_i(wi) (local frame).
     double value(const openvdb::math::Vec3d& wi, const openvdb::math::Vec3d& wo) const;
@@ -61,6 +64,10 @@ private:
     Brdf mBrdf;
     std::vector<float> mKernel;
     std::vector<uint32_t> mSupport;
+    // K over the support, dense (symmetric, so either storage order), in both precisions:
+    // the solver's reflections are one small matrix product each (Eigen's, vectorised).
+    std::vector<float> mCompact;
+    std::vector<double> mCompactWide;
     double mMaxError = 0.0, mRmsError = 0.0, mSeconds = 0.0;
 };
 

@@ -35,30 +35,40 @@ template<typename T> struct Channels { static constexpr bool kRgb = false; };
 template<> struct Channels<openvdb::Vec3f> { static constexpr bool kRgb = true; };
 template<> struct Channels<openvdb::Vec3d> { static constexpr bool kRgb = true; };
 
+template<typename T> T channel(T v, int) { return v; }
+template<typename S> S channel(const openvdb::math::Vec3<S>& v, int ch) { return v[ch]; }
+
 } // namespace
 
 template<typename T>
 void
-GlossySurfaces::product(const Class& c, const ControlBrdf& k, const T* in, T* out,
-    std::vector<T>& a, std::vector<T>& b) const
+GlossySurfaces::product(const Class& c, const T* in, T* out, std::vector<Scalar<T>>& a,
+    std::vector<Scalar<T>>& b) const
 {
-    // out = Q K Q^T in over the kernel's support (D_c applied by the callers).
-    const size_t P = points();
+    // out = Q K Q^T in: Q^T moves the world values to the lobe's support (c.Q's sources are
+    // support slots), K is one dense product there (ControlBrdf::apply), Q moves them back.
+    // D_c is applied by the callers. Channels are the columns of a and b.
+    constexpr int W = Channels<T>::kRgb ? 3 : 1;
+    const size_t P = points(), s = mLobes[c.lobe]->support().size();
     const ControlPoints::Map& Q = c.Q;
-    a.assign(P, T(0));
+    a.assign(s * W, Scalar<T>(0));
+    b.resize(s * W);
     for (size_t i = 0; i < P; ++i) {
-        for (uint32_t e = Q.start[i]; e < Q.start[i + 1]; ++e) a[Q.source[e]] += in[i] * Q.weight[e];
+        for (uint32_t e = Q.start[i]; e < Q.start[i + 1]; ++e) {
+            const Scalar<T> w = Scalar<T>(Q.weight[e]);
+            for (int ch = 0; ch < W; ++ch) a[size_t(ch) * s + Q.source[e]] += channel(in[i], ch) * w;
+        }
     }
-    b.assign(P, T(0));
-    const std::vector<float>& K = k.kernel();
-    const std::vector<uint32_t>& support = k.support();
-    for (const uint32_t o : support) {
-        const float* row = &K[size_t(o) * P];
-        T v(0);
-        for (const uint32_t i : support) v += a[i] * row[i];
-        b[o] = v;
+    mLobes[c.lobe]->apply(a.data(), b.data(), W);
+    for (size_t i = 0; i < P; ++i) {
+        Scalar<T> v[W] = {};
+        for (uint32_t e = Q.start[i]; e < Q.start[i + 1]; ++e) {
+            const Scalar<T> w = Scalar<T>(Q.weight[e]);
+            for (int ch = 0; ch < W; ++ch) v[ch] += w * b[size_t(ch) * s + Q.source[e]];
+        }
+        if constexpr (W == 3) out[i] = T(v[0], v[1], v[2]);
+        else out[i] = v[0];
     }
-    Q.apply(b.data(), out);
 }
 
 GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& directions,
@@ -136,6 +146,23 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
     tbb::parallel_for(size_t(0), mClasses.size(), [&](size_t ci) {
         Class& c = mClasses[ci];
         c.Q = mPoints.rotation(ControlPoints::frame(c.normal), options.rotation);
+        {
+            // Sources as slots of the lobe's support; other local points carry nothing.
+            const std::vector<uint32_t>& support = mLobes[c.lobe]->support();
+            std::vector<uint32_t> slot(P, UINT32_MAX);
+            for (size_t j = 0; j < support.size(); ++j) slot[support[j]] = uint32_t(j);
+            ControlPoints::Map q;
+            q.start.push_back(0);
+            for (size_t i = 0; i < P; ++i) {
+                for (uint32_t e = c.Q.start[i]; e < c.Q.start[i + 1]; ++e) {
+                    if (slot[c.Q.source[e]] == UINT32_MAX) continue;
+                    q.source.push_back(slot[c.Q.source[e]]);
+                    q.weight.push_back(c.Q.weight[e]);
+                }
+                q.start.push_back(uint32_t(q.source.size()));
+            }
+            c.Q = std::move(q);
+        }
         // h_c: the cosine weights of the set's directions on this normal's hemisphere, splatted
         // as the sweeps splat light.
         c.share.assign(P, 0.0);
@@ -152,14 +179,13 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
         for (size_t i = 0; i < P; ++i) c.exitance[i] = float(c.share[i] / total);
         // Symmetric Sinkhorn: d <- sqrt(d / (K_c (d h))) until d (K_c (d h)) = 1 on the rows
         // uniform light reaches.
-        const ControlBrdf& K = *mLobes[c.lobe];
         std::vector<double> x(P), y(P), a, b;
-        product(c, K, c.share.data(), y.data(), a, b);
+        product(c, c.share.data(), y.data(), a, b);
         c.d.assign(P, 0.0);
         for (size_t i = 0; i < P; ++i) c.d[i] = y[i] > 0.0 ? 1.0 / std::sqrt(y[i]) : 0.0;
         for (int it = 0; it < 1000; ++it) {
             for (size_t i = 0; i < P; ++i) x[i] = c.d[i] * c.share[i];
-            product(c, K, x.data(), y.data(), a, b);
+            product(c, x.data(), y.data(), a, b);
             double worst = 0.0;
             for (size_t i = 0; i < P; ++i) {
                 if (c.d[i] == 0.0) continue;
@@ -185,6 +211,23 @@ GlossySurfaces::roughnessOf(long key)
     return std::clamp(double(key) * kRoughnessStep, Brdf::kMinRoughness, 1.0);
 }
 
+std::vector<uint32_t>
+GlossySurfaces::splatPoints(const ControlPoints& points, const DirectionSet& directions,
+    const std::vector<size_t>& ks)
+{
+    std::vector<char> used(points.size(), 0);
+    for (const size_t k : ks) {
+        for (const double sense : {1.0, -1.0}) {
+            for (const uint32_t i : points.weights(directions.unit(k) * sense).index) used[i] = 1;
+        }
+    }
+    std::vector<uint32_t> out;
+    for (size_t i = 0; i < used.size(); ++i) {
+        if (used[i]) out.push_back(uint32_t(i));
+    }
+    return out;
+}
+
 void
 GlossySurfaces::setShare(size_t g, const double* share)
 {
@@ -193,7 +236,7 @@ GlossySurfaces::setShare(size_t g, const double* share)
     if (!share) share = c.share.data();
     std::vector<double> x(P), r(P), a, b;
     for (size_t i = 0; i < P; ++i) x[i] = c.d[i] * share[i];
-    product(c, *mLobes[c.lobe], x.data(), r.data(), a, b);
+    product(c, x.data(), r.data(), a, b);
     double peak = 0.0;
     for (size_t i = 0; i < P; ++i) peak = std::max(peak, c.d[i] * r[i]);
     float* inv = &mInvShare[g * P];
@@ -209,9 +252,10 @@ GlossySurfaces::reflect(size_t g, const T* incident, T* out) const
 {
     const size_t P = points();
     const Class& c = mClasses[mClassOf[g]];
-    std::vector<T> x(P), a, b;
+    std::vector<T> x(P);
+    std::vector<Scalar<T>> a, b;
     for (size_t i = 0; i < P; ++i) x[i] = incident[i] * c.d[i];
-    product(c, *mLobes[c.lobe], x.data(), out, a, b);
+    product(c, x.data(), out, a, b);
     const float* inv = &mInvShare[g * P];
     const size_t v = mVoxel[g];
     if constexpr (Channels<T>::kRgb) {
@@ -242,10 +286,12 @@ GlossySurfaces::memUsage() const
     const size_t P = points();
     size_t bytes = (mGlossyOf.capacity() + mVoxel.capacity() + mClassOf.capacity()) * 4
         + mInvShare.capacity() * 4 + mToward.capacity() * sizeof(ControlPoints::Weights);
-    for (const auto& l : mLobes) bytes += l->kernel().capacity() * 4;
+    // Each kernel: full (float) and over its support (float and double).
+    for (const auto& l : mLobes) {
+        bytes += l->kernel().capacity() * 4 + l->support().size() * l->support().size() * 12;
+    }
     for (const Class& c : mClasses) {
-        bytes += c.Q.source.capacity() * 8 + c.Q.start.capacity() * 4 + P * (8 + 8 + 4)
-;
+        bytes += c.Q.source.capacity() * 8 + c.Q.start.capacity() * 4 + P * (8 + 8 + 4);
     }
     return bytes;
 }

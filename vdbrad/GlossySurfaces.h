@@ -25,9 +25,15 @@
 //     of uniform glossy material and emission is exact voxel by voxel.
 // The voxel's radiosity (its exitance) is B_d + sum_o e_o S_o, e_c = h_c / sum h_c.
 //
-// Memory: per glossy voxel, P values per channel for S, for each accumulator group's I (8) and
-// P floats for r_v (P = 162: ~6 KB grey); per class, its rotation and scaling (~5 KB); per
-// lobe, K (P^2 floats, 105 KB). A scene without glossy voxels allocates none of it.
+// Memory: per glossy voxel, P values per channel for S and P floats for r_v, and each
+// accumulator group's I (8) on the points its directions reach (two opposite octants: ~64 of
+// 162; RadiositySolver) (P = 162: ~3.5 KB grey); per class, its rotation and scaling (~5 KB);
+// per lobe, K (P^2 floats, 105 KB, and over its support in float and double). A scene without
+// glossy voxels allocates none of it.
+//
+// Time: the reflection is one dense product over the lobe's support per voxel (Eigen's, ~100^2
+// for 162 points), the sweeps three loads per glossy sender and three splats per glossy receiver
+// per direction (BENCHMARKS.md, "Glossy surfaces").
 #pragma once
 
 #include "vdbrad/Brdf.h"
@@ -96,6 +102,11 @@ public:
         return mToward[2 * k + (negative ? 1 : 0)];
     }
 
+    /// @brief The points on which directions @a ks of @a directions (both senses) splat, in
+    /// increasing order: a sweep group's directions reach only these (RadiositySolver).
+    static std::vector<uint32_t> splatPoints(const ControlPoints& points,
+        const DirectionSet& directions, const std::vector<size_t>& ks);
+
     /// @brief Take voxel @a g's measured share of the points, h_v (P values, the splat of the
     /// cosine weights of the directions that met something); null: the full hemisphere's h_c
     /// (a voxel open to the sky loses what leaves, as its diffuse part does).
@@ -118,8 +129,9 @@ public:
 
 private:
     struct Class;
-    template<typename T> void product(const Class& c, const ControlBrdf& k, const T* in, T* out,
-        std::vector<T>& a, std::vector<T>& b) const;
+    template<typename T> using Scalar = typename openvdb::VecTraits<T>::ElementType;
+    template<typename T> void product(const Class& c, const T* in, T* out,
+        std::vector<Scalar<T>>& a, std::vector<Scalar<T>>& b) const;
     GlossyOptions mOptions;
     ControlPoints mPoints;
     const Scene& mScene;

@@ -87,7 +87,12 @@ struct RadiositySolver::Impl
     std::array<std::vector<uint32_t>, SweepSchedule::kPatterns> glossyAt;
     std::vector<std::vector<double>> glossyHits;
     std::vector<double> glossyShare;
-    std::vector<openvdb::Vec3d> glossyDirect;
+    std::vector<openvdb::Vec3f> glossyDirect;
+    // A pattern's directions (both senses) splat on a few of the points only (two opposite
+    // octants and their borders: 66 of 162): per pattern, those points, and per direction,
+    // its two interpolations numbered in its pattern's list. A group's splats hold only these.
+    std::array<std::vector<uint32_t>, SweepSchedule::kPatterns> glossySlots;
+    std::vector<ControlPoints::Weights> glossySlotToward;
 
     // The iterate and what the next iteration needs of the last one, in one of the four types.
     template<typename ValueT>
@@ -99,8 +104,9 @@ struct RadiositySolver::Impl
         std::vector<ValueT> unshot;                          // progressive shooting only
         std::vector<std::vector<typename Traits<ValueT>::Acc>> gathered;   // per group
         std::unique_ptr<AndersonMixerT<Scalar>> mixer;       // Acceleration::Anderson only
-        // Glossy voxels: their lobes' reflected light S, and per group the light splatted on
-        // their points (both P values per glossy voxel).
+        // Glossy voxels: their lobes' reflected light S (P values per glossy voxel), and per
+        // group the light splatted on its pattern's points (Impl::glossySlots) in the current
+        // iteration: reflected at its end, never needed after (not checkpointed).
         std::vector<ValueT> spec;
         std::vector<std::vector<typename Traits<ValueT>::Acc>> incident;
         SweepSchedule::PerThread<LineSweep::Workspace<ValueT>> work;
@@ -230,20 +236,24 @@ struct RadiositySolver::Engine
             Hits ? H->data() : static_cast<Scalar*>(nullptr), uint32_t(G.size()));
     }
 
-    // out[0, width) += the accumulators' values [at, at + width), in group order (the glossy
-    // voxels' arrays are in glossy order in every group, unlike SweepSchedule::sum's).
+    // out[0, P) += glossy voxel k's splats in every group (its pattern's points), in group
+    // order.
     template<typename ArraysT, typename OutT>
-    static void sumGroups(const ArraysT& groups, size_t at, size_t width, OutT* out)
+    static void sumSlots(const Impl& impl, const ArraysT& groups, size_t k, OutT* out)
     {
-        for (const auto& a : groups) {
+        for (size_t g = 0; g < groups.size(); ++g) {
+            const auto& a = groups[g];
             if (a.empty()) continue;
-            for (size_t o = 0; o < width; ++o) out[o] += OutT(a[at + o]);
+            const std::vector<uint32_t>& slots = impl.glossySlots[SweepSchedule::patternOf(int(g))];
+            const size_t w = slots.size();
+            for (size_t j = 0; j < w; ++j) out[slots[j]] += OutT(a[k * w + j]);
         }
     }
 
     // What a group's sweeps read and write for glossy voxels: their glossy indices (in the
-    // group's pattern order), their lobes' light S, and the group's splat of what they receive
-    // (and, in the first iteration, of the weights of the directions that meet something).
+    // group's pattern order), their lobes' light S (P points each), and the group's splat of
+    // what they receive (and, in the first iteration, of the weights of the directions that
+    // meet something), `slots` values each (the pattern's points).
     struct GlossyLanes
     {
         const uint32_t* at = nullptr;
@@ -251,6 +261,7 @@ struct RadiositySolver::Engine
         AccT* incident = nullptr;
         double* hits = nullptr;
         size_t points = 0;
+        size_t slots = 0;
     };
 
     // Group g's directions gathered into G (and their hit weights into H), from Bp (the
@@ -309,11 +320,14 @@ struct RadiositySolver::Engine
             }
             flush();
             const float c = impl.coefficient[k];
-            // Glossy: the points of +sigma and -sigma.
+            // Glossy: the points of +sigma and -sigma (senders: of all P; receivers: in the
+            // pattern's slots).
             const ControlPoints::Weights* toward[2] = {nullptr, nullptr};
+            const ControlPoints::Weights* slotToward = nullptr;
             if constexpr (Glossy) {
                 toward[0] = &impl.glossy->toward(k, false);
                 toward[1] = &impl.glossy->toward(k, true);
+                slotToward = &impl.glossySlotToward[2 * k];
             }
             // x (a position in the pattern's order) receives what it sees.
             auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
@@ -325,13 +339,13 @@ struct RadiositySolver::Engine
                         const uint32_t gx = lanes.at[x];
                         if (gx != GlossySurfaces::kNone) {
                             // x looks along +sigma (sigma . n > 0): the light comes from there.
-                            const ControlPoints::Weights& u = *toward[sigmaDotN > 0.f ? 0 : 1];
-                            AccT* I = lanes.incident + size_t(gx) * lanes.points;
+                            const ControlPoints::Weights& u = slotToward[sigmaDotN > 0.f ? 0 : 1];
+                            AccT* I = lanes.incident + size_t(gx) * lanes.slots;
                             for (int j = 0; j < 3; ++j) {
                                 I[u.index[j]] += *seen * float(w * u.weight[j]);
                             }
                             if constexpr (Hits) {
-                                double* h = lanes.hits + size_t(gx) * lanes.points;
+                                double* h = lanes.hits + size_t(gx) * lanes.slots;
                                 for (int j = 0; j < 3; ++j) h[u.index[j]] += w * u.weight[j];
                             }
                         }
@@ -423,14 +437,16 @@ struct RadiositySolver::Engine
                 // voxels, so that a diffuse scene's sweeps test nothing for them.
                 GlossyLanes lanes;
                 if (glossy) {
+                    const size_t slots = impl.glossySlots[SweepSchedule::patternOf(g)].size();
                     std::vector<AccT>& I = st.incident[size_t(g)];
-                    I.assign(glossyN * P, openvdb::zeroVal<AccT>());
+                    I.assign(glossyN * slots, openvdb::zeroVal<AccT>());
                     lanes.at = impl.glossyAt[SweepSchedule::patternOf(g)].data();
                     lanes.spec = st.spec.data();
                     lanes.incident = I.data();
                     lanes.points = P;
+                    lanes.slots = slots;
                     if (H) {
-                        impl.glossyHits[size_t(g)].assign(glossyN * P, 0.0);
+                        impl.glossyHits[size_t(g)].assign(glossyN * slots, 0.0);
                         lanes.hits = impl.glossyHits[size_t(g)].data();
                     }
                 }
@@ -462,7 +478,7 @@ struct RadiositySolver::Engine
                         [&](const tbb::blocked_range<size_t>& r) {
                             for (size_t k = r.begin(); k != r.end(); ++k) {
                                 if (impl.regions.region[glossy->voxel(k)] == 0) continue;
-                                sumGroups(impl.glossyHits, k * P, P, &impl.glossyShare[k * P]);
+                                sumSlots(impl, impl.glossyHits, k, &impl.glossyShare[k * P]);
                             }
                         });
                     impl.applyGlossyShares();
@@ -496,12 +512,13 @@ struct RadiositySolver::Engine
                         std::vector<ValueT> In(P);
                         for (size_t k = r.begin(); k != r.end(); ++k) {
                             std::fill(I.begin(), I.end(), openvdb::zeroVal<WideT>());
-                            sumGroups(st.incident, k * P, P, I.data());
+                            sumSlots(impl, st.incident, k, I.data());
                             if (!impl.glossyDirect.empty()) {
                                 // Irradiance to a splat: times the voxel's cosine sum 1 / invZ.
                                 const double z = 1.0 / impl.invZ[glossy->voxel(k)];
                                 for (size_t o = 0; o < P; ++o) {
-                                    I[o] += channelsOf<WideT>(impl.glossyDirect[k * P + o] * z);
+                                    I[o] += channelsOf<WideT>(
+                                        openvdb::Vec3d(impl.glossyDirect[k * P + o]) * z);
                                 }
                             }
                             // Reflected in the state's own precision (the sums above are
@@ -596,12 +613,27 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     layout.regions = regions;
     impl.schedule.reset(new SweepSchedule(scene.voxels(), std::move(directions), layout));
     if (impl.glossy) {
+        const size_t P = impl.glossy->points();
+        impl.glossySlotToward.resize(2 * dirs);
         for (size_t p = 0; p < impl.glossyAt.size(); ++p) {
-            const std::vector<uint32_t>& order = impl.schedule->pattern(p).order;
+            const SweepSchedule::Pattern& pattern = impl.schedule->pattern(p);
+            const std::vector<uint32_t>& order = pattern.order;
             if (order.empty()) continue;
             impl.glossyAt[p].resize(order.size());
             for (size_t x = 0; x < order.size(); ++x) {
                 impl.glossyAt[p][x] = impl.glossy->glossyOf(order[x]);
+            }
+            std::vector<uint32_t>& slots = impl.glossySlots[p];
+            slots = GlossySurfaces::splatPoints(impl.glossy->controlPoints(),
+                impl.schedule->directions(), pattern.directions);
+            std::vector<uint32_t> slot(P, GlossySurfaces::kNone);
+            for (size_t j = 0; j < slots.size(); ++j) slot[slots[j]] = uint32_t(j);
+            for (const size_t k : pattern.directions) {
+                for (const bool negative : {false, true}) {
+                    ControlPoints::Weights w = impl.glossy->toward(k, negative);
+                    for (uint32_t& i : w.index) i = slot[i];
+                    impl.glossySlotToward[2 * k + (negative ? 1 : 0)] = w;
+                }
             }
         }
     }
@@ -666,17 +698,19 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
     if (impl.glossy) {
         const GlossySurfaces& gl = *impl.glossy;
         const size_t P = gl.points();
-        impl.glossyDirect.assign(gl.size() * P, openvdb::Vec3d(0.0));
+        impl.glossyDirect.assign(gl.size() * P, openvdb::Vec3f(0.f));
         // Captures by value or of objects that outlive the call: the sink runs after this block.
         const GlossySurfaces* glp = &gl;
         sink.wants = [glp](size_t i) { return glp->glossyOf(i) != GlossySurfaces::kNone; };
         sink.take = [glp, P, &impl](size_t i,
                         const std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>>& in) {
             const GlossySurfaces& gl = *glp;
-            openvdb::Vec3d* splat = &impl.glossyDirect[size_t(gl.glossyOf(i)) * P];
+            openvdb::Vec3f* splat = &impl.glossyDirect[size_t(gl.glossyOf(i)) * P];
             for (const auto& [dir, light] : in) {
                 const ControlPoints::Weights w = gl.controlPoints().weights(dir);
-                for (int j = 0; j < 3; ++j) splat[w.index[j]] += light * w.weight[j];
+                for (int j = 0; j < 3; ++j) {
+                    splat[w.index[j]] += openvdb::Vec3f(light * w.weight[j]);
+                }
             }
         };
     }
@@ -801,9 +835,10 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     }
     size_t bytes = n * perVoxel;
     if (scene.isGlossy()) {
-        // Per glossy voxel: S, each group's splat and (first iteration) hit splat, the previous
-        // S, the measured share, the normaliser and, with exact direct light, the direct splat;
-        // per scene voxel, the glossy index in each pattern's order.
+        // Per glossy voxel: S, each group's splat and (first iteration) hit splat on its
+        // pattern's points (at most half of them, Impl::glossySlots), the previous S, the
+        // measured share, the normaliser and, with exact direct light, the direct splat; per
+        // scene voxel, the glossy index in each pattern's order.
         size_t glossy = 0;
         std::vector<char> roughness(size_t(std::lround(1.0 / GlossySurfaces::kRoughnessStep)) + 1);
         for (size_t i = 0; i < n; ++i) {
@@ -815,8 +850,21 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
             }
         }
         const size_t P = size_t(options.glossy.controlPoints);
-        const size_t perPoint = c * (2 + size_t(kGroups)) + 8 * (size_t(kGroups) + 1) + 4 + 24;
-        bytes += glossy * P * perPoint + n * 4 * (SweepSchedule::kPatterns + 1);
+        // The groups' splats: each group holds its pattern's points.
+        size_t splats = size_t(kGroups) * P;
+        if (options.directions >= 1 && size_t(options.directions) <= DirectionSet::maxCount()) {
+            const DirectionSet dirs = DirectionSet::fromCount(options.directions);
+            const ControlPoints points(ControlPoints::orderForCount(int(P)));
+            const LeafOrder::Patterns dealt = LeafOrder::patterns(dirs.size(),
+                [&](size_t k) { return dirs.direction(k); });
+            splats = 0;
+            for (int g = 0; g < kGroups; ++g) {
+                splats += GlossySurfaces::splatPoints(points, dirs,
+                    dealt.directions[SweepSchedule::patternOf(g)]).size();
+            }
+        }
+        bytes += glossy * (P * (2 * c + 8 + 4 + 12) + splats * (c + 8))
+            + n * 4 * (SweepSchedule::kPatterns + 1);
         // One kernel per rounded roughness, and up to kMaxClasses rotations.
         const size_t lobes = size_t(std::count(roughness.begin(), roughness.end(), 1));
         const size_t classes = std::min<size_t>(GlossySurfaces::kMaxClasses, glossy);
@@ -891,15 +939,11 @@ RadiositySolver::saveState(SolverState& state) const
         if (st.mixer) st.mixer->save(state, "anderson.");
         if (impl.glossy) {
             put("glossy.spec", st.spec);
-            for (size_t g = 0; g < size_t(kGroups); ++g) {
-                put("glossy.incident" + std::to_string(g), g < st.incident.size()
-                    ? st.incident[g] : typename decltype(st.incident)::value_type());
-            }
         }
     });
     if (impl.glossy) {
         state.put("glossy.share", impl.glossyShare);
-        state.put("glossy.direct", reinterpret_cast<const double*>(impl.glossyDirect.data()),
+        state.put("glossy.direct", reinterpret_cast<const float*>(impl.glossyDirect.data()),
             impl.glossyDirect.size() * 3);
     }
 }
@@ -956,10 +1000,6 @@ RadiositySolver::restoreState(const SolverState& state)
             if (st.spec.size() != m) {
                 OPENVDB_THROW(openvdb::ValueError, "checkpoint has no glossy light");
             }
-            st.incident.resize(size_t(kGroups));
-            for (size_t g = 0; g < st.incident.size(); ++g) {
-                getGlossy("glossy.incident" + std::to_string(g), st.incident[g]);
-            }
         }
     });
     if (impl.glossy) {
@@ -968,13 +1008,13 @@ RadiositySolver::restoreState(const SolverState& state)
         if (!impl.glossyShare.empty() && impl.glossyShare.size() != m) {
             OPENVDB_THROW(openvdb::ValueError, "checkpoint's glossy shares do not fit the scene");
         }
-        const std::vector<double> direct = state.get<double>("glossy.direct");
+        const std::vector<float> direct = state.get<float>("glossy.direct");
         if (!direct.empty() && direct.size() != 3 * m) {
             OPENVDB_THROW(openvdb::ValueError, "checkpoint's glossy direct light does not fit");
         }
         impl.glossyDirect.resize(direct.size() / 3);
         for (size_t e = 0; e < impl.glossyDirect.size(); ++e) {
-            impl.glossyDirect[e] = openvdb::Vec3d(direct[3 * e], direct[3 * e + 1],
+            impl.glossyDirect[e] = openvdb::Vec3f(direct[3 * e], direct[3 * e + 1],
                 direct[3 * e + 2]);
         }
         impl.applyGlossyShares();
