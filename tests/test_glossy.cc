@@ -4,6 +4,9 @@
 #include "RandomDirection.h"
 #include "vdbrad/Brdf.h"
 #include "vdbrad/ControlBrdf.h"
+#include "vdbrad/DirectLight.h"
+#include "vdbrad/Emitters.h"
+#include "vdbrad/GlossyLamps.h"
 #include "vdbrad/GlossySurfaces.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
@@ -315,6 +318,73 @@ TEST_F(GlossyTest, GlossyFloorMatchesTheSingleBounceReference)
             }
         }
     }
+}
+
+TEST_F(GlossyTest, RenderersSeeTheLampsHighlightAlongItsDirection)
+{
+    // GlossyLamps (what a renderer's gather ray sees of a glossy voxel whose file keeps only
+    // its lobe's exitance) on the floor under the lamp, whose light is all the lamp's: its
+    // lamp share is ks times the exact irradiance (0.1 %), sent() along the mirror direction and
+    // 20 degrees off it is the exact single bounce (4 %: 64 shadow rays' directions stand for
+    // the lamp), and its cosine-weighted mean over the hemisphere gives back the even value
+    // (1 %: the lobe's energy compensation). The lamp (diffuse) sends its even value.
+    const float roughness = 0.65f;
+    const Scene scene = glossyFloorUnderLamp(roughness);
+    const Emitters emitters(scene);
+    DirectLightOptions d;
+    d.samples = 64;
+    const DirectLightSampler sampler(scene, emitters, d);
+    const BrdfModel model = BrdfModel::Ggx;
+    const GlossyLamps lamps(scene, sampler, model);
+    const Brdf brdf(model, roughness);
+    for (const int X : {6, 10}) {
+        const Vec3d p(X, 3, 0);
+        const size_t i = scene.voxels().find(openvdb::Coord(X, 3, 0));
+        // Irradiance (radiosity units) from the lamp of exitance 1: int cos cos / (pi r^2) dA.
+        double irradiance = 0.0;
+        const int m = 400;
+        for (int a = 0; a < m; ++a) {
+            for (int b = 0; b < m; ++b) {
+                const Vec3d q(-2.5 + 5.0 * (a + 0.5) / m, -2.5 + 5.0 * (b + 0.5) / m, 12.0);
+                const Vec3d dq = q - p;
+                const double r2 = dq.lengthSqr();
+                irradiance += (dq.z() * dq.z() / r2) / (kPi * r2) * (25.0 / (double(m) * m));
+            }
+        }
+        const Vec3d share = lamps.lampShare(i);
+        EXPECT_NEAR(share[0] / (0.8 * irradiance), 1.0, 1e-3) << "x " << X;
+        const Vec3d l = (Vec3d(0, 0, 12) - p).unit();
+        const Vec3d mirror(-l.x(), -l.y(), l.z());
+        for (const double turn : {0.0, 20.0, -20.0}) {
+            const double a = turn * kPi / 180.0;
+            const Vec3d v = Vec3d(mirror.x() * std::cos(a) + mirror.z() * std::sin(a),
+                mirror.y(), -mirror.x() * std::sin(a) + mirror.z() * std::cos(a)).unit();
+            const double exact = lampReflection(brdf, p, v);
+            const double got = lamps.sent(i, v, share)[0];
+            std::cout << "x " << X << ", " << turn << " deg from the mirror: " << got << " vs "
+                      << exact << " (" << 100.0 * (got / exact - 1.0) << " %)\n";
+            EXPECT_NEAR(got / exact, 1.0, 0.04)
+                << "x " << X << ", " << turn << " degrees from the mirror";
+        }
+        // Cosine-weighted mean: stratified over (cos^2 theta, phi).
+        double mean = 0.0;
+        const int k = 200;
+        for (int a = 0; a < k; ++a) {
+            for (int b = 0; b < k; ++b) {
+                const double mu = std::sqrt((a + 0.5) / k), phi = 2.0 * kPi * (b + 0.5) / k;
+                const double s = std::sqrt(1.0 - mu * mu);
+                mean += lamps.sent(i, Vec3d(s * std::cos(phi), s * std::sin(phi), mu), share)[0];
+            }
+        }
+        std::cout << "x " << X << ": lamp share / exact " << share[0] / (0.8 * irradiance)
+                  << ", hemisphere mean / even " << mean / (double(k) * k) / share[0] << "\n";
+        EXPECT_NEAR(mean / (double(k) * k) / share[0], 1.0, 0.01) << "x " << X;
+        // Light below the horizon: none of the lamps' (the floor is open: nothing else).
+        EXPECT_NEAR(lamps.sent(i, Vec3d(0, 0.6, -0.8), share)[0], 0.0, 1e-9 * share[0]);
+    }
+    const size_t lamp = scene.voxels().find(openvdb::Coord(0, 0, 12));
+    EXPECT_EQ(lamps.sent(lamp, Vec3d(0, 0, -1), Vec3d(0.25)), Vec3d(0.25));
+    EXPECT_EQ(lamps.lampShare(lamp), Vec3d(0.0));
 }
 
 TEST_F(GlossyTest, RefusesWhatGlossyScenesCannotUse)

@@ -3,6 +3,7 @@
 #include "vdbrad/Brdf.h"
 #include "vdbrad/ControlPoints.h"
 #include "vdbrad/DirectLight.h"
+#include "vdbrad/GlossyLamps.h"
 #include "vdbrad/GlossySurfaces.h"
 #include "vdbrad/Emitters.h"
 #include "vdbrad/Enclosure.h"
@@ -186,16 +187,10 @@ struct Renderer::Gather
 
 constexpr double kPi = 3.14159265358979323846;
 
-struct Renderer::Glossy
+// The lobes and the lamps' light through them (GlossyLamps.h).
+struct Renderer::Glossy : GlossyLamps
 {
-    BrdfModel model = BrdfModel::Phong;
-    // One lobe per roughness (rounded as the solver rounds it: GlossySurfaces.h), built once:
-    // a lobe's energy compensation costs milliseconds.
-    std::map<long, Brdf> lobes;
-    const Brdf& lobe(float roughness) const
-    {
-        return lobes.at(GlossySurfaces::roughnessKey(roughness));
-    }
+    using GlossyLamps::GlossyLamps;
 };
 
 struct Renderer::Tracer
@@ -264,7 +259,10 @@ struct Renderer::Tracer
             const uint32_t hit = traceSurface(scene, planes, *mSurface, g.box, uint32_t(v),
                 origin, world);
             if (hit == kRaySky && closed) { --used; continue; }   // a digitisation crack
-            if (hit < kRayBack) gathered += g.reflected[hit] * (brdf.value(l, wo) * l.z() / pdf);
+            if (hit < kRayBack) {
+                gathered += mR.mGlossy->sent(hit, -world, g.reflected[hit])
+                    * (brdf.value(l, wo) * l.z() / pdf);
+            }
         }
         if (used > 0) sum += gathered / double(used);
         return Vec3f(float(ks[0] * sum[0]), float(ks[1] * sum[1]), float(ks[2] * sum[2]));
@@ -295,7 +293,10 @@ struct Renderer::Tracer
                 rays(s));
             // A closed room's voxel leaving through its own cube: a digitisation crack.
             if (hit == kRaySky && closed) continue;
-            if (hit < kRayBack) sum += g.reflected[hit];
+            if (hit < kRayBack) {
+                sum += mR.mGlossy ? mR.mGlossy->sent(hit, -rays(s), g.reflected[hit])
+                                  : g.reflected[hit];
+            }
             ++used;
         }
         const Vec3d gathered = used > 0 ? sum / double(used) : Vec3d(0.0);
@@ -560,16 +561,10 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
             }
             const Attribute lobes = Attribute::sample(*specular, mScene.voxels(),
                 names::kSpecularRadiosity, 0.f);
-            mGlossy.reset(new Glossy);
             const openvdb::Metadata::ConstPtr model = radiosity->getMetadata<openvdb::StringMetadata>(
                 meta::kBrdf);
-            if (model) mGlossy->model = brdfModelFromName(model->str());
-            for (size_t i = 0; i < mScene.size(); ++i) {
-                if (mScene.specular().rgb(i) == Vec3f(0.f)) continue;
-                const long k = GlossySurfaces::roughnessKey(mScene.roughness().grey(i));
-                if (mGlossy->lobes.count(k)) continue;
-                mGlossy->lobes.emplace(k, Brdf(mGlossy->model, GlossySurfaces::roughnessOf(k)));
-            }
+            mGlossy.reset(new Glossy(mScene, mGather->sampler,
+                model ? brdfModelFromName(model->str()) : BrdfModel::Phong));
             std::vector<Vec3f> diffuse(mScene.size());
             for (size_t i = 0; i < diffuse.size(); ++i) {
                 diffuse[i] = mRadiosity.rgb(i) - lobes.rgb(i);

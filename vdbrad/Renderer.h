@@ -180,7 +180,7 @@ private:
     std::unique_ptr<Gather> mGather;
     Attribute mRadiosity;                    // per surface voxel, scene numbering (glossy
                                              // scenes with glossyRays: the diffuse part)
-    struct Glossy;                           // the lobes' model (glossyRays > 0 only)
+    struct Glossy;                           // lobes and lamps (GlossyLamps; glossyRays > 0)
     std::unique_ptr<Glossy> mGlossy;
     openvdb::FloatGrid::Ptr mLevelSet;       // level-set scenes only (a shallow copy)
     std::unique_ptr<LevelSetShared> mLevelSetShared;
