@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# vdbrad against Blender Cycles on the Cornell box mesh: the same mesh, camera, size and machine,
-# in one script (issue 23). Prints, for each run, the wall time of the whole process (vdbrad:
-# voxelize | solve | render; Cycles: start, import, sync, render) and the image error against a
-# converged Cycles reference (benchmarks/cycles/image_error.py: mean |X - ref| / mean ref outside
-# the light's pixels), and the reference's own noise (half the error between two seeds).
+# vdbrad against Blender Cycles on the Cornell box mesh (or another one in its frame: MESH): the
+# same mesh, camera, size and machine, in one script (issues 23, 25). Prints, for each run, the
+# wall time of the whole process (vdbrad: voxelize | solve | render; Cycles: start, import, sync,
+# render) and the image error against a converged Cycles reference (benchmarks/cycles/
+# image_error.py: mean |X - ref| / mean ref outside the light's pixels), and the reference's own
+# noise (half the error between two seeds).
 #
 #   bash benchmarks/compare_cycles.sh            (needs `blender`, Debian's 3.4; ~30 min on 2 cores)
 #   REF_SPP=4096 VDBRAD_RUNS="128:1000 256:3000" CYCLES_SPP="16 64" bash benchmarks/compare_cycles.sh
@@ -11,13 +12,34 @@
 #   VDBRAD_MESH= ...                              (draw the voxels, not the mesh: voxel outlines)
 #   VDBRAD_DIRECT=exact VDBRAD_SOLVE="--lines standard" ...   (one direct mode; more solve options)
 #   CSV=docs/cornell-vs-cycles.csv ...            (append one row per run: scripts/plot-cycles.py)
+#   MESH=samples/meshes/glossy_cornell.obj ...    (the glossy Cornell box; output in
+#       /tmp/vdbrad_vs_cycles_glossy_cornell: vdbrad solves with --brdf ggx unless VDBRAD_SOLVE
+#       names a --brdf, Cycles renders Kd + Ks multiscatter GGX, cycles/cornell_cycles.py)
+#   VDBRAD_RENDER="--glossy-rays 64" ...          (more render options; VDBRAD_SOLVE="--brdf ggx
+#       --control-points 642" for finer lobes)
 set -euo pipefail
+# MESH: relative to the caller's directory, else to the repository's.
+mesh=${MESH:-}
+[ -z "$mesh" ] || [ ! -e "$mesh" ] || mesh=$(cd "$(dirname "$mesh")" && pwd)/$(basename "$mesh")
 cd "$(dirname "$0")/.."
 V=${VDBRAD:-build/vdbrad}
-mesh=$PWD/samples/meshes/cornell_box.obj
+mesh=${mesh:-samples/meshes/cornell_box.obj}
+[ "${mesh:0:1}" = / ] || mesh=$PWD/$mesh
+[ -e "$mesh" ] || { echo "no mesh $mesh" >&2; exit 1; }
+name=$(basename "$mesh" .obj)
+# A mesh whose MTL has a glossy lobe (Ks > 0): vdbrad's GGX, the lobe Cycles renders.
+mtl=$(dirname "$mesh")/$(sed -n 's/^mtllib[[:space:]]*//p' "$mesh" | head -1 | tr -d '\r')
+solve_opts=${VDBRAD_SOLVE-}
+if [ -f "$mtl" ] && awk 'tolower($1) == "ks" { for (i = 2; i <= 4 && i <= NF; ++i)
+       if ($i + 0 > 0) glossy = 1 } END { exit !glossy }' "$mtl" \
+   && ! grep -q -- --brdf <<< "$solve_opts"; then
+  solve_opts="--brdf ggx${solve_opts:+ $solve_opts}"
+fi
 cam="0.278,0.273,-0.8,0.278,0.273,0,0,1,0,39.3"
 size=${SIZE:-320x240}
-out=${OUT:-/tmp/vdbrad_vs_cycles}
+default_out=/tmp/vdbrad_vs_cycles
+[ "$name" = cornell_box ] || default_out=${default_out}_$name   # not the box's references
+out=${OUT:-$default_out}
 mkdir -p "$out"
 blender_run() {   # SAMPLES SEED OUT.exr
   blender -b -noaudio --factory-startup --python benchmarks/cycles/cornell_cycles.py -- \
@@ -38,15 +60,16 @@ rows=()   # tool,res,directions,direct,options,spp,seconds
 for run in ${VDBRAD_RUNS-64:1000 128:300 128:1000 128:3000 256:1000 256:3000 512:1000}; do
   res=${run%%:*}; dirs=${run##*:}
   for direct in ${VDBRAD_DIRECT-sweep exact}; do
-    tag=$(echo "${VDBRAD_SOLVE-}" | tr -c 'a-zA-Z0-9.\n-' _)
+    opts=$solve_opts${VDBRAD_RENDER:+ $VDBRAD_RENDER}
+    tag=$(echo "$opts" | tr -c 'a-zA-Z0-9.\n-' _)
     img="$out/vdbrad_${res}_${dirs}_${direct}${tag}.exr"
     t=$(seconds sh -c "'$V' voxelize '$mesh' - --res $res --quiet \
       | '$V' solve - - --directions $dirs --tolerance 1e-4 --direct $direct --quiet \
-        ${VDBRAD_SOLVE-} \
+        $solve_opts \
       | '$V' render - '$img' --res $size --camera $cam --exr-type float --aa 4 --quiet \
-        ${VDBRAD_MESH-"--mesh '$mesh'"}")
-    images+=("$img"); labels+=("vdbrad res $res, $dirs directions, direct $direct ${VDBRAD_SOLVE-}: $t s")
-    rows+=("vdbrad,$res,$dirs,$direct,${VDBRAD_SOLVE-},,$t")
+        ${VDBRAD_MESH-"--mesh '$mesh'"} ${VDBRAD_RENDER-}")
+    images+=("$img"); labels+=("vdbrad res $res, $dirs directions, direct $direct $opts: $t s")
+    rows+=("vdbrad,$res,$dirs,$direct,$opts,,$t")
   done
 done
 for spp in ${CYCLES_SPP-16 64 256 1024}; do

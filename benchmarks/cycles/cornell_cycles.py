@@ -1,9 +1,18 @@
-# Render an OBJ scene in Blender Cycles as the path-traced reference for vdbrad (issue 23):
-# pure Lambertian materials from the MTL's Kd (emitters' too), emission strength = Ke (so every
-# pixel equals vdbrad's radiosity B: an Emission shader of strength S shows radiance S, vdbrad's
-# exitance E is radiance E / pi), one-sided emitters, no denoising, no clamping, no adaptive
-# sampling, a box pixel filter of the narrowest width (point samples at the pixel centre, as
-# vdbrad's renderer), float EXR, the Standard view transform.
+# Render an OBJ scene in Blender Cycles as the path-traced reference for vdbrad (issues 23, 25):
+# vdbrad's reflectance model from the MTL the OBJ names (read here as vdbrad's voxelizer reads
+# it): f = Kd / pi + Ks lobe (vdbrad/Brdf.h), a Lambertian Diffuse BSDF of colour Kd plus, for
+# materials with Ks, a Glossy BSDF of weight Ks (Add Shader; see reflection()) with the
+# multiscatter GGX distribution (energy-conserving, as vdbrad's compensated lobes are; no
+# Fresnel) and vdbrad's roughness r: Pr, else from Ns r = sqrt(sqrt(2 / (Ns + 2))), else 0.5;
+# clamped to [0.1, 1] and rounded to the solver's 0.01 steps; Cycles' alpha = r^2 as vdbrad's.
+# Kd and Ks are scaled by 1 / max(Kd + Ks) where that exceeds 1, as the voxelizer does.
+# Emission strength = Ke (so every pixel equals vdbrad's radiosity B: an Emission shader of
+# strength S shows radiance S, vdbrad's exitance E is radiance E / pi), one-sided emitters, no
+# denoising, no clamping, no adaptive sampling, a box pixel filter of the narrowest width (point
+# samples at the pixel centre, as vdbrad's renderer), float EXR, the Standard view transform.
+# Scenes with glossy materials also get glossy bounces, reflective caustics (diffuse -> glossy ->
+# light paths: the floor lit through the blocks' lobes) and no glossy blur; purely diffuse scenes
+# render exactly as before.
 #
 #   blender -b -noaudio --factory-startup --python cornell_cycles.py -- \
 #       MESH.obj OUT.exr SAMPLES [SEED] [WIDTHxHEIGHT] [eye,target,up,fov]
@@ -21,7 +30,7 @@ width, height = (int(v) for v in (args[4] if len(args) > 4 else "320x240").split
 cam = [float(v) for v in (args[5] if len(args) > 5 else
        "0.278,0.273,-0.8,0.278,0.273,0,0,1,0,39.3").split(",")]
 
-# The MTL's Kd and Ke by material name.
+# The MTL's Kd, Ks, Ns, Pr and Ke by material name (vdbrad/ObjReader.cc's reading).
 materials = {}
 mtl = None
 with open(mesh) as f:
@@ -31,25 +40,86 @@ with open(mesh) as f:
 name = None
 with open(mtl) as f:
     for line in f:
-        w = line.split()
-        if not w or w[0].startswith("#"):
+        w = line.split("#", 1)[0].split()
+        if not w:
             continue
-        if w[0] == "newmtl":
+        key = w[0].capitalize()
+        if key == "Newmtl":
             name = w[1]
-            materials[name] = {"Kd": (0.0, 0.0, 0.0), "Ke": (0.0, 0.0, 0.0)}
-        elif w[0] in ("Kd", "Ke") and name:
+            # vdbrad's default Kd is 0.5 (its --albedo), its default roughness 0.5.
+            materials[name] = {"Kd": (0.5, 0.5, 0.5), "Ks": (0.0, 0.0, 0.0),
+                               "Ke": (0.0, 0.0, 0.0)}
+        elif key in ("Kd", "Ks", "Ke") and name:
             v = [float(x) for x in w[1:4]]
-            materials[name][w[0]] = tuple(v + v[-1:] * (3 - len(v)))
+            materials[name][key] = tuple(v + v[-1:] * (3 - len(v)))
+        elif key in ("Ns", "Pr") and name:
+            materials[name][key] = float(w[1])
+
+
+def roughness(m):
+    """vdbrad's roughness: Pr, else from the Phong exponent Ns (Brdf::roughnessFromExponent),
+    else 0.5; in [0.1, 1], rounded to the solver's 0.01 steps (GlossySurfaces::roughnessKey)."""
+    if "Pr" in m:
+        r = m["Pr"]
+    elif "Ns" in m:
+        r = math.sqrt(math.sqrt(2.0 / (max(m["Ns"], 0.0) + 2.0)))
+    else:
+        r = 0.5
+    r = min(max(r, 0.1), 1.0)
+    return min(max(round(r / 0.01) * 0.01, 0.1), 1.0)
+
+
+glossy = False
+for m in materials.values():
+    # A surface reflects no more than it receives: the voxelizer scales Kd and Ks alike.
+    worst = max(d + s for d, s in zip(m["Kd"], m["Ks"]))
+    if worst > 1.0:
+        m["Kd"] = tuple(d / worst for d in m["Kd"])
+        m["Ks"] = tuple(s / worst for s in m["Ks"])
+    glossy = glossy or max(m["Ks"]) > 0.0
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
 # forward Y, up Z keeps the OBJ's own coordinates.
 bpy.ops.wm.obj_import(filepath=mesh, forward_axis="Y", up_axis="Z")
 
+
+def reflection(nodes, links, m):
+    """vdbrad's f = Kd / pi + Ks lobe: a Lambertian Diffuse BSDF, plus a multiscatter GGX Glossy
+    BSDF where Ks > 0. Returns the shader socket."""
+    kd, ks = m["Kd"], m["Ks"]
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (kd[0], kd[1], kd[2], 1.0)
+    diffuse.inputs["Roughness"].default_value = 0.0   # Lambert
+    if max(ks) <= 0.0:
+        return diffuse.outputs["BSDF"]
+    lobe = nodes.new("ShaderNodeBsdfGlossy")
+    # Multiscatter GGX: GGX made energy-conserving (the light lost to shadowing and masking comes
+    # back, by a random walk on the microsurface), as vdbrad's compensated lobes reflect all of
+    # Ks; no Fresnel (vdbrad has none either).
+    lobe.distribution = "MULTI_GGX"
+    lobe.inputs["Roughness"].default_value = roughness(m)   # alpha = r^2, as vdbrad's
+    # The lobe's colour Ks / max(Ks), weighted by max(Ks) through a Mix Shader (its other input
+    # empty): the weight is Ks all the same, but Cycles also tints every microfacet bounce of the
+    # random walk after the first by the colour, so colour Ks would reflect Ks^k, not Ks, of the
+    # light that leaves after k bounces (glossy_cornell's short block top 5 % darker at Ks 0.6).
+    # Grey Ks now reflects Ks exactly, coloured Ks (Ks / max Ks)^(k-1) Ks: nearly.
+    k = max(ks)
+    lobe.inputs["Color"].default_value = (ks[0] / k, ks[1] / k, ks[2] / k, 1.0)
+    weight = nodes.new("ShaderNodeMixShader")
+    weight.inputs["Fac"].default_value = k
+    links.new(lobe.outputs["BSDF"], weight.inputs[2])
+    add = nodes.new("ShaderNodeAddShader")
+    links.new(diffuse.outputs["BSDF"], add.inputs[0])
+    links.new(weight.outputs["Shader"], add.inputs[1])
+    return add.outputs["Shader"]
+
+
 for mat in bpy.data.materials:
     base = mat.name.split(".")[0]
     if base not in materials:
         continue
-    kd, ke = materials[base]["Kd"], materials[base]["Ke"]
+    m = materials[base]
+    ke = m["Ke"]
     mat.use_nodes = True
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.clear()
@@ -60,14 +130,12 @@ for mat in bpy.data.materials:
         s = max(ke)
         emit.inputs["Color"].default_value = (ke[0] / s, ke[1] / s, ke[2] / s, 1.0)
         emit.inputs["Strength"].default_value = s
-        # The emitter also reflects its Kd, as vdbrad's emitting voxels do (an Emission shader
-        # alone is black to incoming light: the Cornell light's Kd 0.73 moved the back wall 1 %).
-        reflect = nodes.new("ShaderNodeBsdfDiffuse")
-        reflect.inputs["Color"].default_value = (kd[0], kd[1], kd[2], 1.0)
-        reflect.inputs["Roughness"].default_value = 0.0
+        # The emitter also reflects its Kd (and Ks), as vdbrad's emitting voxels do (an Emission
+        # shader alone is black to incoming light: the Cornell light's Kd 0.73 moved the back
+        # wall 1 %).
         front = nodes.new("ShaderNodeAddShader")
         links.new(emit.outputs["Emission"], front.inputs[0])
-        links.new(reflect.outputs["BSDF"], front.inputs[1])
+        links.new(reflection(nodes, links, m), front.inputs[1])
         black = nodes.new("ShaderNodeBsdfDiffuse")
         black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
         geometry = nodes.new("ShaderNodeNewGeometry")
@@ -77,10 +145,7 @@ for mat in bpy.data.materials:
         links.new(black.outputs["BSDF"], mix.inputs[2])
         links.new(mix.outputs["Shader"], output.inputs["Surface"])
     else:
-        diffuse = nodes.new("ShaderNodeBsdfDiffuse")
-        diffuse.inputs["Color"].default_value = (kd[0], kd[1], kd[2], 1.0)
-        diffuse.inputs["Roughness"].default_value = 0.0   # Lambert
-        links.new(diffuse.outputs["BSDF"], output.inputs["Surface"])
+        links.new(reflection(nodes, links, m), output.inputs["Surface"])
 
 world = bpy.data.worlds.new("black")
 world.use_nodes = True
@@ -121,6 +186,13 @@ c.volume_bounces = 0
 c.transparent_max_bounces = 0
 c.caustics_reflective = False
 c.caustics_refractive = False
+if glossy:
+    # Every path vdbrad's solution holds: glossy bounces as many as diffuse ones, the light
+    # reflected by a lobe onto diffuse surfaces (Cycles drops glossy closures after a diffuse
+    # bounce without reflective caustics), and no blur of glossy closures after rough bounces.
+    c.glossy_bounces = 64
+    c.caustics_reflective = True
+    c.blur_glossy = 0.0
 c.filter_width = 0.01
 c.pixel_filter_type = "BOX"
 scene.render.threads_mode = "FIXED"
