@@ -962,41 +962,31 @@ RadiositySolver::restoreState(const SolverState& state)
         using StateT = std::decay_t<decltype(st)>;
         using Scalar = typename StateT::Scalar;
         constexpr size_t width = StateT::kWidth;
-        // Arrays of channels, empty or of n voxels.
-        auto get = [&](const std::string& name, auto& v) {
+        // Arrays of channels, empty or of `count` values (n voxels; for glossy voxels, their
+        // control values).
+        auto get = [&](const std::string& name, auto& v, size_t count, const char* unit) {
             const std::vector<Scalar> f = state.get<Scalar>(name);
-            if (!f.empty() && f.size() != n * width) {
+            if (!f.empty() && f.size() != count * width) {
                 OPENVDB_THROW(openvdb::ValueError, "checkpoint's '" << name << "' has "
-                    << f.size() << " values for " << n << " voxels");
+                    << f.size() << " values for " << count << " " << unit);
             }
             v.resize(f.size() / width);
             if (!f.empty()) {
                 std::memcpy(static_cast<void*>(v.data()), f.data(), f.size() * sizeof(Scalar));
             }
         };
-        get("B", st.B);
-        get("unshot", st.unshot);
+        get("B", st.B, n, "voxels");
+        get("unshot", st.unshot, n, "voxels");
         st.gathered.resize(size_t(kGroups));
         for (size_t g = 0; g < st.gathered.size(); ++g) {
-            get("gathered" + std::to_string(g), st.gathered[g]);
+            get("gathered" + std::to_string(g), st.gathered[g], n, "voxels");
         }
         if (st.B.size() != n) OPENVDB_THROW(openvdb::ValueError, "checkpoint has no B");
         impl.startFromSource = false;
         if (st.mixer) st.mixer->restore(state, "anderson.");
         if (impl.glossy) {
             const size_t m = impl.glossy->size() * impl.glossy->points();
-            auto getGlossy = [&](const std::string& name, auto& v) {
-                const std::vector<Scalar> f = state.get<Scalar>(name);
-                if (!f.empty() && f.size() != m * width) {
-                    OPENVDB_THROW(openvdb::ValueError, "checkpoint's '" << name << "' has "
-                        << f.size() << " values for " << m << " control values");
-                }
-                v.resize(f.size() / width);
-                if (!f.empty()) {
-                    std::memcpy(static_cast<void*>(v.data()), f.data(), f.size() * sizeof(Scalar));
-                }
-            };
-            getGlossy("glossy.spec", st.spec);
+            get("glossy.spec", st.spec, m, "control values");
             if (st.spec.size() != m) {
                 OPENVDB_THROW(openvdb::ValueError, "checkpoint has no glossy light");
             }
