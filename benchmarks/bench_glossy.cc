@@ -7,8 +7,11 @@
 //                              distribution, both representations at matched sizes
 //   bench_glossy solve RES D   the glossy Cornell box (samples/meshes/glossy_cornell.obj) at RES
 //                              voxels, D directions: diffuse, diffuse with the blocks' Ks in
-//                              their albedo (same energy), glossy blocks, everything glossy;
-//                              seconds, iterations and the solver's memory estimate
+//                              their albedo (same energy), glossy blocks, everything glossy,
+//                              and both glossy scenes again on harmonics of order 8 (81
+//                              coefficients, --harmonics 8): seconds, iterations, the solver's
+//                              memory estimate, and the harmonic solves' glossy exitances
+//                              against the control points' (mean |difference| / mean)
 //
 // Errors are relative to the lobe's peak over a 20,480-direction validation set of the upper
 // hemisphere (never a fit sample). Times: best of 3 (BenchTiming.h).
@@ -256,12 +259,18 @@ runSolve(int res, int directions)
     double base = 0.0;
     size_t baseMemory = 0;
     double sameAlbedo = 0.0;
-    for (int mode = 0; mode < 4; ++mode) {
+    // Modes 4 and 5: modes 2 and 3 on harmonics, against their control-point solves' times
+    // and exitances.
+    double pointsWall[2] = {0.0, 0.0};
+    std::vector<float> pointsGrey[2];
+    for (int mode = 0; mode < 6; ++mode) {
+        const bool harmonics = mode >= 4;
+        const int kind = harmonics ? mode - 2 : mode;
         VoxelizeOptions vo;
         vo.resolution = res;
-        vo.specular = mode == 1 || mode == 2;
+        vo.specular = kind == 1 || kind == 2;
         openvdb::GridPtrVec grids = voxelizeMesh(m, vo);
-        if (mode == 1) {
+        if (kind == 1) {
             // The blocks' Ks folded into their diffuse albedo: the same energy in every bounce,
             // so the same number of iterations as the glossy solve needs (its baseline).
             auto albedo = openvdb::ConstPtrCast<openvdb::Vec3SGrid>(
@@ -280,7 +289,7 @@ runSolve(int res, int directions)
             }), grids.end());
         }
         Scene scene = buildScene(grids);
-        if (mode == 3) {
+        if (kind == 3) {
             // Everything glossy: a lobe of 0.2 on top of each wall's albedo (whites: 0.93).
             scene.setGloss(Attribute(0.2f), Attribute(0.5f));
         }
@@ -290,6 +299,10 @@ runSolve(int res, int directions)
         o.directions = directions;
         o.tolerance = 1e-4;
         o.direct = DirectMode::Exact;
+        if (harmonics) {
+            o.glossy.basis = GlossyBasis::Harmonics;
+            o.glossy.harmonicOrder = 8;
+        }
         const size_t memory = RadiositySolver::memoryEstimate(scene, o,
             tbb::this_task_arena::max_concurrency());
         bench::Spent took;
@@ -298,15 +311,41 @@ runSolve(int res, int directions)
         if (mode == 0) { base = took.wall; baseMemory = memory; }
         if (mode == 1) sameAlbedo = took.wall;
         const char* names[] = {"diffuse", "diffuse, blocks Kd + Ks", "glossy blocks (MTL Ks/Ns)",
-            "everything glossy"};
+            "everything glossy", "glossy blocks, SH L=8", "everything glossy, SH L=8"};
         std::printf("%-26s %9zu %9zu %6d %9.2f %9.3f %11.1f %7.2f\n", names[mode], scene.size(),
             glossy, solver->iterationCount(), took.wall, perIteration, memory / 1048576.0,
             took.wall / base);
         if (solver->glossy()) {
-            char same[64] = "";
+            char same[128] = "";
             if (mode == 2) {
                 std::snprintf(same, sizeof same, "; %.2fx the diffuse solve of Kd + Ks",
                     took.wall / sameAlbedo);
+            }
+            // The radiosity's channels' mean per voxel.
+            auto mean = [&] {
+                std::vector<float> v(scene.size());
+                const std::vector<openvdb::Vec3f> rgb = solver->rgb();
+                for (size_t i = 0; i < v.size(); ++i) v[i] = (rgb[i][0] + rgb[i][1] + rgb[i][2]) / 3.f;
+                return v;
+            };
+            if (kind >= 2 && !harmonics) {
+                pointsWall[kind - 2] = took.wall;
+                pointsGrey[kind - 2] = mean();
+            }
+            if (harmonics) {
+                // The glossy voxels' radiosity against the control points' solve of the same
+                // scene: where the two representations disagree.
+                const std::vector<float>& a = pointsGrey[kind - 2];
+                const std::vector<float> b = mean();
+                double diff = 0.0, sum = 0.0;
+                for (size_t i = 0; i < scene.size() && i < a.size(); ++i) {
+                    if (scene.specular().grey(i) <= 0.f) continue;
+                    diff += std::abs(double(b[i]) - a[i]);
+                    sum += a[i];
+                }
+                std::snprintf(same, sizeof same, "; %.2fx the control points' time, glossy "
+                    "radiosity %.2f %% from theirs", took.wall / pointsWall[kind - 2],
+                    100.0 * diff / sum);
             }
             std::printf("    %s; setup %.2f s; memory %.2fx diffuse%s\n",
                 solver->glossy()->describe().c_str(), solver->glossy()->setupSeconds(),

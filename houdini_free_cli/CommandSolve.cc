@@ -68,6 +68,14 @@ runSolve(const Arguments& a)
     o.directSamples = a.getInt("direct-samples");
     o.glossy.model = brdfModelFromName(a.getString("brdf"));
     o.glossy.controlPoints = a.getInt("control-points");
+    if (a.getInt("harmonics") > 0) {
+        if (a.has("control-points") || a.has("glossy-rotation")) {
+            throw UsageError("--harmonics replaces the control points: drop --control-points "
+                             "and --glossy-rotation");
+        }
+        o.glossy.basis = GlossyBasis::Harmonics;
+        o.glossy.harmonicOrder = a.getInt("harmonics");
+    }
     o.glossy.rotation = choice<ControlPoints::RotationKind>(a, "glossy-rotation",
         {{"resampled", ControlPoints::RotationKind::Resampled},
             {"continuous", ControlPoints::RotationKind::Continuous},

@@ -229,6 +229,10 @@ commands()
                     "points of each glossy voxel's radiance distribution: 12, 42, 162, 642 or "
                     "2562 (finer lobes, more memory: ~110 bytes per point and glossy voxel in RGB)"}
                     .oneOf({"12", "42", "162", "642", "2562"}),
+                OptionSpec{"harmonics", OptionType::Int, "0", "8",
+                    "instead of control points, real spherical harmonics of this order carry "
+                    "the glossy distributions ((L+1)^2 coefficients; the thesis' alternative, "
+                    "slower and ringing: for comparisons; 0: control points)"}.within(0, 32),
                 OptionSpec{"glossy-rotation", OptionType::String, "resampled", "permutation",
                     "how lobes are turned to each normal: resampled, continuous or permutation "
                     "(the thesis' two)"}.oneOf({"resampled", "continuous", "permutation"}),

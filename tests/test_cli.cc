@@ -860,4 +860,17 @@ TEST_F(CliTest, GlossyCornellBoxGoesFromMeshToHighlights)
     EXPECT_FALSE(exists(path("x.vdb")));
     ASSERT_EQ(sh("vdbrad voxelize " + mesh + " plain.vdb --res 16 --no-specular").status, 0);
     EXPECT_FALSE(findGrid(readVdbFile(path("plain.vdb")).grids, "specular"));
+    // On spherical harmonics (the thesis' alternative): said and recorded; not with control
+    // points' options.
+    const Result harmonic = sh("vdbrad solve room.vdb sh.vdb --directions 100 --tolerance 1e-3 "
+                               "--harmonics 4");
+    ASSERT_EQ(harmonic.status, 0) << harmonic.err;
+    EXPECT_NE(harmonic.err.find("harmonics of order 4"), std::string::npos) << harmonic.err;
+    const openvdb::GridBase::ConstPtr H = findGrid(readVdbFile(path("sh.vdb")).grids, "radiosity");
+    ASSERT_TRUE(H && (*H)["vdbrad:harmonic_order"]);
+    EXPECT_EQ((*H)["vdbrad:harmonic_order"]->str(), "4");
+    const Result both = sh("vdbrad solve room.vdb y.vdb --harmonics 4 --control-points 42");
+    EXPECT_EQ(both.status, 2) << both.err;
+    EXPECT_EQ(both.errLines().size(), 1u) << both.err;
+    EXPECT_FALSE(exists(path("y.vdb")));
 }

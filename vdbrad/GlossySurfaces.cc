@@ -27,9 +27,20 @@ struct GlossySurfaces::Class
     std::vector<double> d;        // the symmetric scaling D_c
     std::vector<double> share;    // h_c: the direction set's cosine weights on the points
     std::vector<float> exitance;  // e_c = h_c / sum h_c
+    // Harmonics: D_c and D_c^T, and the normalisation for the full hemisphere's h_c.
+    SphericalHarmonics::Rotation toWorld, toLocal;
+    Normaliser norm;
 };
 
+const char*
+glossyBasisName(GlossyBasis basis)
+{
+    return basis == GlossyBasis::Harmonics ? "harmonics" : "points";
+}
+
 namespace {
+
+constexpr double kPi = 3.14159265358979323846;
 
 template<typename T> struct Channels { static constexpr bool kRgb = false; };
 template<> struct Channels<openvdb::Vec3f> { static constexpr bool kRgb = true; };
@@ -78,7 +89,16 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
     , mScene(scene)
 {
     const auto t0 = std::chrono::steady_clock::now();
-    const size_t n = scene.size(), P = mPoints.size();
+    if (options.basis == GlossyBasis::Harmonics) {
+        if (options.harmonicOrder < 1 || options.harmonicOrder > SphericalHarmonics::kMaxOrder) {
+            OPENVDB_THROW(openvdb::ValueError, "harmonic order " + std::to_string(
+                options.harmonicOrder) + " is outside 1.." + std::to_string(
+                SphericalHarmonics::kMaxOrder));
+        }
+        mHarmonics.reset(new SphericalHarmonics(options.harmonicOrder));
+    }
+    mValues = mHarmonics ? mHarmonics->size() : mPoints.size();
+    const size_t n = scene.size(), P = mValues;
     mGlossyOf.assign(n, kNone);
     for (size_t i = 0; i < n; ++i) {
         const openvdb::Vec3f ks = scene.specular().rgb(i);
@@ -98,10 +118,19 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
         if (it->second == roughness.size()) roughness.push_back(roughnessOf(key));
         lobe[g] = it->second;
     }
-    mLobes.resize(roughness.size());
-    tbb::parallel_for(size_t(0), roughness.size(), [&](size_t l) {
-        mLobes[l].reset(new ControlBrdf(mPoints, Brdf(options.model, roughness[l]), options.fit));
-    });
+    if (mHarmonics) {
+        mHarmonicLobes.resize(roughness.size());
+        for (size_t l = 0; l < roughness.size(); ++l) {
+            mHarmonicLobes[l].reset(new HarmonicBrdf(*mHarmonics,
+                Brdf(options.model, roughness[l])));
+        }
+    } else {
+        mLobes.resize(roughness.size());
+        tbb::parallel_for(size_t(0), roughness.size(), [&](size_t l) {
+            mLobes[l].reset(new ControlBrdf(mPoints, Brdf(options.model, roughness[l]),
+                options.fit));
+        });
+    }
 
     // Classes: (normal, lobe), the normals exact while few enough, else rounded to a fine grid.
     auto keyOf = [&](const openvdb::Vec3f& nrm, uint32_t l) {
@@ -137,6 +166,21 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
         mClassOf[g] = it->second;
     }
 
+    if (mHarmonics) {
+        mHarmonicToward.resize(2 * directions.size() * P);
+        std::vector<double> y(P);
+        for (size_t k = 0; k < 2 * directions.size(); ++k) {
+            mHarmonics->basis(directions.unit(k / 2) * (k % 2 ? -1.0 : 1.0), y.data());
+            for (size_t b = 0; b < P; ++b) mHarmonicToward[k * P + b] = float(y[b]);
+        }
+        tbb::parallel_for(size_t(0), mClasses.size(), [&](size_t ci) {
+            setupHarmonicClass(mClasses[ci], directions);
+        });
+        mVoxelNorm.resize(mVoxel.size());
+        mSetupSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+            .count();
+        return;
+    }
     mToward.resize(2 * directions.size());
     for (size_t k = 0; k < directions.size(); ++k) {
         mToward[2 * k] = mPoints.weights(directions.unit(k));
@@ -203,6 +247,70 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
 
 GlossySurfaces::~GlossySurfaces() = default;
 
+void
+GlossySurfaces::normalise(const Class& c, std::vector<double> h, Normaliser& norm) const
+{
+    // u . h = sqrt(4 pi) Y_00 sum w = sum w.
+    const size_t N = mValues;
+    norm.h = std::move(h);
+    norm.z = std::sqrt(4.0 * kPi) * norm.h[0];
+    norm.q.assign(N, 0.0);
+    norm.hh = norm.qh = 0.0;
+    std::vector<double> y(N);
+    reflectHarmonicRaw(c, norm, norm.h.data(), y.data());   // no correction yet: q = 0
+    norm.q[0] = std::sqrt(4.0 * kPi);
+    for (size_t b = 0; b < N; ++b) {
+        norm.q[b] -= y[b];
+        norm.hh += norm.h[b] * norm.h[b];
+        norm.qh += norm.q[b] * norm.h[b];
+    }
+}
+
+void
+GlossySurfaces::setupHarmonicClass(Class& c, const DirectionSet& directions) const
+{
+    const size_t N = mValues;
+    const openvdb::math::Mat3d R = ControlPoints::frame(c.normal);
+    c.toWorld = mHarmonics->rotation(R);
+    c.toLocal = mHarmonics->rotation(R.transpose());
+    // h_c as the sweeps splat: Y of the sense facing the normal, times its cosine weight.
+    c.share.assign(N, 0.0);
+    for (size_t k = 0; k < directions.size(); ++k) {
+        const double cosine = directions.unit(k).dot(c.normal);
+        if (cosine == 0.0) continue;
+        const float* y = harmonicToward(k, cosine < 0.0);
+        const double weight = std::abs(cosine) * directions.factor(k);
+        for (size_t b = 0; b < N; ++b) c.share[b] += weight * double(y[b]);
+    }
+    normalise(c, c.share, c.norm);
+    c.exitance.resize(N);
+    for (size_t b = 0; b < N; ++b) c.exitance[b] = float(c.share[b] / c.norm.z);
+}
+
+void
+GlossySurfaces::reflectHarmonicRaw(const Class& c, const Normaliser& norm, const double* in,
+    double* out) const
+{
+    // out = (D K D^T in) / Z + Delta in (Delta: 0 while q is).
+    const size_t N = mValues;
+    std::vector<double> a(N), b(N);
+    c.toLocal.apply(in, a.data());
+    mHarmonicLobes[c.lobe]->apply(a.data(), b.data(), 1);
+    c.toWorld.apply(b.data(), out);
+    double hx = 0.0, qx = 0.0;
+    for (size_t i = 0; i < N; ++i) {
+        out[i] /= norm.z;
+        hx += norm.h[i] * in[i];
+        qx += norm.q[i] * in[i];
+    }
+    if (norm.hh > 0.0) {
+        const double s = 1.0 / norm.hh, t = norm.qh * hx * s * s;
+        for (size_t i = 0; i < N; ++i) {
+            out[i] += (norm.q[i] * hx + norm.h[i] * qx) * s - t * norm.h[i];
+        }
+    }
+}
+
 size_t GlossySurfaces::classes() const { return mClasses.size(); }
 
 double
@@ -234,6 +342,23 @@ GlossySurfaces::setShare(size_t g, const double* share)
     const size_t P = points();
     const Class& c = mClasses[mClassOf[g]];
     if (!share) share = c.share.data();
+    if (mHarmonics) {
+        const double z = std::sqrt(4.0 * kPi) * share[0];
+        if (share != c.share.data() && z > 1e-6 * c.norm.z) {
+            double dev = 0.0;
+            for (size_t i = 0; i < P; ++i) dev = std::max(dev, std::abs(share[i] - c.share[i]));
+            if (dev == 0.0) share = c.share.data();   // nothing missed: the class's
+        }
+        if (share == c.share.data() || !(z > 1e-6 * c.norm.z)) {
+            // Open to the sky (or nothing measured): the class's normalisation.
+            mVoxelNorm[g].reset();
+            return;
+        }
+        auto norm = std::make_unique<Normaliser>();
+        normalise(c, std::vector<double>(share, share + P), *norm);
+        mVoxelNorm[g] = std::move(norm);
+        return;
+    }
     std::vector<double> x(P), r(P), a, b;
     for (size_t i = 0; i < P; ++i) x[i] = c.d[i] * share[i];
     product(c, x.data(), r.data(), a, b);
@@ -250,6 +375,10 @@ template<typename T>
 void
 GlossySurfaces::reflect(size_t g, const T* incident, T* out) const
 {
+    if (mHarmonics) {
+        reflectHarmonic(g, incident, out);
+        return;
+    }
     const size_t P = points();
     const Class& c = mClasses[mClassOf[g]];
     std::vector<T> x(P);
@@ -268,6 +397,54 @@ GlossySurfaces::reflect(size_t g, const T* incident, T* out) const
         const double ks = mScene.specular().grey(v);
         for (size_t i = 0; i < P; ++i) out[i] *= T(ks * c.d[i] * inv[i]);
     }
+}
+
+template<typename T>
+void
+GlossySurfaces::reflectHarmonic(size_t g, const T* incident, T* out) const
+{
+    // Channel by channel in double: the rotations' blocks are double, and a reflection costs
+    // ~N^2 (6,561 products at L = 8) against a sweep's N per direction.
+    constexpr int W = Channels<T>::kRgb ? 3 : 1;
+    const size_t N = points();
+    const Class& c = mClasses[mClassOf[g]];
+    const size_t v = mVoxel[g];
+    const openvdb::Vec3f ks = mScene.specular().rgb(v);
+    std::vector<double> x(N), y(N);
+    for (int ch = 0; ch < W; ++ch) {
+        for (size_t i = 0; i < N; ++i) x[i] = double(channel(incident[i], ch));
+        reflectHarmonicRaw(c, mVoxelNorm[g] ? *mVoxelNorm[g] : c.norm, x.data(), y.data());
+        const double s = W == 3 ? double(ks[ch]) : mScene.specular().grey(v);
+        for (size_t i = 0; i < N; ++i) {
+            if constexpr (W == 3) out[i][ch] = typename T::ValueType(y[i] * s);
+            else out[i] = T(y[i] * s);
+        }
+    }
+}
+
+void
+GlossySurfaces::splat(const Vec3d& dir, const openvdb::Vec3f& value, openvdb::Vec3f* out) const
+{
+    if (mHarmonics) {
+        std::vector<double> y(mValues);
+        mHarmonics->basis(dir, y.data());
+        for (size_t b = 0; b < mValues; ++b) out[b] += value * float(y[b]);
+        return;
+    }
+    const ControlPoints::Weights w = mPoints.weights(dir);
+    for (int j = 0; j < 3; ++j) out[w.index[size_t(j)]] += value * float(w.weight[size_t(j)]);
+}
+
+template<typename T>
+T
+GlossySurfaces::evaluate(const T* S, const Vec3d& dir) const
+{
+    if (!mHarmonics) return mPoints.evaluate(S, dir);
+    std::vector<double> y(mValues);
+    mHarmonics->basis(dir, y.data());
+    T sum(0);
+    for (size_t b = 0; b < mValues; ++b) sum += S[b] * Scalar<T>(y[b]);
+    return sum;
 }
 
 template<typename T>
@@ -293,6 +470,13 @@ GlossySurfaces::memUsage() const
     for (const Class& c : mClasses) {
         bytes += c.Q.source.capacity() * 8 + c.Q.start.capacity() * 4 + P * (8 + 8 + 4);
     }
+    if (mHarmonics) {
+        bytes += mHarmonicToward.capacity() * 4 + mHarmonicLobes.size() * P * P * 12;
+        // Per class: two rotations' blocks (~L^3 values each), h_c, q.
+        const size_t blocks = SphericalHarmonics::Rotation::blockOffset(mHarmonics->order() + 1);
+        bytes += mClasses.size() * (2 * blocks + 2 * P) * 8;
+        for (const auto& norm : mVoxelNorm) bytes += norm ? (2 * P + 3) * 8 : 0;
+    }
     return bytes;
 }
 
@@ -300,8 +484,10 @@ std::string
 GlossySurfaces::describe() const
 {
     std::ostringstream os;
-    os << withCommas(size()) << " glossy voxels (" << brdfModelName(mOptions.model) << ", "
-       << points() << " control points, " << lobes() << (lobes() == 1 ? " lobe, " : " lobes, ")
+    os << withCommas(size()) << " glossy voxels (" << brdfModelName(mOptions.model) << ", ";
+    if (mHarmonics) os << "harmonics of order " << mHarmonics->order() << ", ";
+    else os << points() << " control points, ";
+    os << lobes() << (lobes() == 1 ? " lobe, " : " lobes, ")
        << classes() << (classes() == 1 ? " normal class)" : " normal classes)");
     return os.str();
 }
@@ -310,6 +496,10 @@ template void GlossySurfaces::reflect(size_t, const float*, float*) const;
 template void GlossySurfaces::reflect(size_t, const double*, double*) const;
 template void GlossySurfaces::reflect(size_t, const openvdb::Vec3f*, openvdb::Vec3f*) const;
 template void GlossySurfaces::reflect(size_t, const openvdb::Vec3d*, openvdb::Vec3d*) const;
+template float GlossySurfaces::evaluate(const float*, const Vec3d&) const;
+template double GlossySurfaces::evaluate(const double*, const Vec3d&) const;
+template openvdb::Vec3f GlossySurfaces::evaluate(const openvdb::Vec3f*, const Vec3d&) const;
+template openvdb::Vec3d GlossySurfaces::evaluate(const openvdb::Vec3d*, const Vec3d&) const;
 template float GlossySurfaces::exitance(size_t, const float*) const;
 template double GlossySurfaces::exitance(size_t, const double*) const;
 template openvdb::Vec3f GlossySurfaces::exitance(size_t, const openvdb::Vec3f*) const;

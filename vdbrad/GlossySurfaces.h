@@ -25,6 +25,22 @@
 //     of uniform glossy material and emission is exact voxel by voxel.
 // The voxel's radiosity (its exitance) is B_d + sum_o e_o S_o, e_c = h_c / sum h_c.
 //
+// Harmonics (GlossyBasis::Harmonics, the thesis' alternative, for comparisons): S and I are
+// (L + 1)^2 real spherical-harmonic coefficients (SphericalHarmonics.h), a sender adds
+// sum_b Y_b(t) S_b, a receiver splats w_s Y_b(s) L on every coefficient, and
+//
+//     S = ks A_c I,   A_c = D_c K D_c^T / Z_c + Delta_c,
+//
+// with K the lobe's projection (HarmonicBrdf.h), D_c the rotation into the normal's frame
+// (Ivanic-Ruedenberg blocks), Z_c = sum of the hemisphere's cosine weights, and Delta_c the
+// smallest symmetric correction (in the Frobenius norm; Powell's symmetric update) that makes
+// A_c h_c = u, u the coefficients of the constant 1: K is not positive, so the control
+// points' symmetric scaling does not apply, but a symmetric A_c with A_c h_c = u conserves
+// energy in the same way (e_c . S = u . I / Z_c with e_c = h_c / Z_c). A voxel whose measured
+// directions miss some of the hemisphere (closed rooms) gets its own Z_v and correction for
+// its measured h_v (2 (L + 1)^2 more doubles for that voxel): A_v h_v = u, so that closed
+// uniform furnaces stay exact.
+//
 // Memory: per glossy voxel, P values per channel for S and P floats for r_v, and each
 // accumulator group's I (8) on the points its directions reach (two opposite octants: ~64 of
 // 162; RadiositySolver) (P = 162: ~3.5 KB grey); per class, its rotation and scaling (~5 KB);
@@ -33,15 +49,19 @@
 //
 // Time: the reflection is one dense product over the lobe's support per voxel (Eigen's, ~100^2
 // for 162 points), the sweeps three loads per glossy sender and three splats per glossy receiver
-// per direction (BENCHMARKS.md, "Glossy surfaces").
+// per direction (BENCHMARKS.md, "Glossy surfaces"). Harmonics: (L + 1)^2 loads and splats
+// instead of three, and a reflection of two rotations (~L^3) and one dense N^2 product: 3-4x
+// the control points' solve at L = 8 (BENCHMARKS.md, "Spherical harmonics as a whole solve").
 #pragma once
 
 #include "vdbrad/Brdf.h"
 #include "vdbrad/ControlBrdf.h"
 #include "vdbrad/ControlPoints.h"
 #include "vdbrad/DirectionSet.h"
+#include "vdbrad/HarmonicBrdf.h"
 #include "vdbrad/Scene.h"
 #include "vdbrad/SphericalFit.h"
+#include "vdbrad/SphericalHarmonics.h"
 
 #include <cmath>
 #include <cstdint>
@@ -51,10 +71,19 @@
 
 namespace vdbrad {
 
+/// How a glossy voxel's distributions are represented (see the file comment).
+enum class GlossyBasis { ControlPoints, Harmonics };
+/// "points", "harmonics".
+const char* glossyBasisName(GlossyBasis basis);
+
 struct GlossyOptions
 {
+    GlossyBasis basis = GlossyBasis::ControlPoints;
     /// Control points per distribution: 12, 42, 162 (the thesis' default), 642 or 2562.
     int controlPoints = 162;
+    /// Harmonics' order L ((L + 1)^2 coefficients per distribution; 1..SphericalHarmonics::
+    /// kMaxOrder): 8 keeps 81, about the data of 42-162 points.
+    int harmonicOrder = 8;
     BrdfModel model = BrdfModel::Phong;
     /// How kernels are rotated into the normals' frames (ControlPoints.h).
     ControlPoints::RotationKind rotation = ControlPoints::RotationKind::Resampled;
@@ -81,9 +110,11 @@ public:
         const GlossyOptions& options = GlossyOptions());
     ~GlossySurfaces();
 
-    /// Glossy voxels, and the control points per distribution.
+    /// Glossy voxels, and the values per distribution (control points, or coefficients).
     size_t size() const { return mVoxel.size(); }
-    size_t points() const { return mPoints.size(); }
+    size_t points() const { return mValues; }
+    /// Whether distributions are harmonic coefficients (GlossyBasis::Harmonics).
+    bool harmonics() const { return bool(mHarmonics); }
     const ControlPoints& controlPoints() const { return mPoints; }
     const GlossyOptions& options() const { return mOptions; }
     /// The glossy index of scene voxel @a i, or kNone.
@@ -91,16 +122,28 @@ public:
     /// The scene voxel of glossy voxel @a g.
     uint32_t voxel(size_t g) const { return mVoxel[g]; }
     size_t classes() const;
-    size_t lobes() const { return mLobes.size(); }
+    size_t lobes() const { return mLobes.size() + mHarmonicLobes.size(); }
+    /// Lobe @a l's kernel (control points only).
     const ControlBrdf& lobe(size_t l) const { return *mLobes[l]; }
     /// Seconds spent fitting kernels and building the classes.
     double setupSeconds() const { return mSetupSeconds; }
 
     /// The interpolation of direction pair @a k's unit direction (@a negative: of its opposite).
+    /// Control points only.
     const ControlPoints::Weights& toward(size_t k, bool negative) const
     {
         return mToward[2 * k + (negative ? 1 : 0)];
     }
+    /// Harmonics only: Y(direction pair @a k's unit direction, or its opposite), points()
+    /// values.
+    const float* harmonicToward(size_t k, bool negative) const
+    {
+        return &mHarmonicToward[(2 * k + (negative ? 1 : 0)) * mValues];
+    }
+    /// @brief out += @a value splatted along @a dir (need not be unit) as the sweeps splat:
+    /// on its three points, or on every coefficient (Y(dir) value).
+    void splat(const openvdb::math::Vec3d& dir, const openvdb::Vec3f& value,
+        openvdb::Vec3f* out) const;
 
     /// @brief The points on which directions @a ks of @a directions (both senses) splat, in
     /// increasing order: a sweep group's directions reach only these (RadiositySolver).
@@ -109,13 +152,19 @@ public:
 
     /// @brief Take voxel @a g's measured share of the points, h_v (P values, the splat of the
     /// cosine weights of the directions that met something); null: the full hemisphere's h_c
-    /// (a voxel open to the sky loses what leaves, as its diffuse part does).
+    /// (a voxel open to the sky loses what leaves, as its diffuse part does). Harmonics: the
+    /// voxel gets its own correction (see the file comment).
     void setShare(size_t g, const double* share);
 
     /// @brief S = ks (A_c I) / r_v for glossy voxel @a g from its splatted light @a incident
     /// (P values), written to @a out (P values). T: float, double, Vec3f, Vec3d.
     template<typename T>
     void reflect(size_t g, const T* incident, T* out) const;
+
+    /// @brief The distribution @a S (points() values) along @a dir: interpolated on the
+    /// points, or sum_b Y_b(dir) S_b.
+    template<typename T>
+    T evaluate(const T* S, const openvdb::math::Vec3d& dir) const;
 
     /// @brief The voxel's lobe's exitance: sum_o e_o S_o.
     template<typename T>
@@ -129,17 +178,36 @@ public:
 
 private:
     struct Class;
+    // Harmonics: Powell's correction Delta x = (q (h . x) + h (q . x) - (q . h)(h . x) h / |h|^2)
+    // / |h|^2 for a share h of total weight Z, with q = u - D K D^T h / Z.
+    struct Normaliser
+    {
+        std::vector<double> h, q;
+        double z = 0.0, hh = 0.0, qh = 0.0;
+    };
+    void normalise(const Class& c, std::vector<double> h, Normaliser& norm) const;
     template<typename T> using Scalar = typename openvdb::VecTraits<T>::ElementType;
     template<typename T> void product(const Class& c, const T* in, T* out,
         std::vector<Scalar<T>>& a, std::vector<Scalar<T>>& b) const;
+    template<typename T> void reflectHarmonic(size_t g, const T* incident, T* out) const;
+    void setupHarmonicClass(Class& c, const DirectionSet& directions) const;
+    void reflectHarmonicRaw(const Class& c, const Normaliser& norm, const double* in,
+        double* out) const;
     GlossyOptions mOptions;
     ControlPoints mPoints;
+    std::unique_ptr<SphericalHarmonics> mHarmonics;
+    size_t mValues = 0;
+    std::vector<std::unique_ptr<HarmonicBrdf>> mHarmonicLobes;
+    std::vector<float> mHarmonicToward;
     const Scene& mScene;
     std::vector<uint32_t> mGlossyOf, mVoxel, mClassOf;
     std::vector<std::unique_ptr<ControlBrdf>> mLobes;
     std::vector<Class> mClasses;
     std::vector<ControlPoints::Weights> mToward;
-    std::vector<float> mInvShare;   // per glossy voxel, P values: 1 / r_v (0 where r_v ~ 0)
+    // Per glossy voxel, P values: 1 / r_v (0 where r_v ~ 0); harmonics: the normalisation
+    // of a voxel that measured a share other than its class's (null: the class's).
+    std::vector<float> mInvShare;
+    std::vector<std::unique_ptr<Normaliser>> mVoxelNorm;
     double mSetupSeconds = 0.0;
 };
 

@@ -268,7 +268,10 @@ struct RadiositySolver::Engine
     // swept radiosity in g's pattern order): each direction is swept, or replayed from the
     // visibility cache, or cast (Visibility::RayCast). Glossy: senders add their lobe's light
     // along the direction, receivers splat what they see on its points (GlossySurfaces.h).
-    template<bool Hits, bool Glossy>
+    // How a group's sweeps treat glossy voxels: not at all (a diffuse scene), on control
+    // points (three weights per direction), or on harmonics (every coefficient).
+    enum GlossyKind { kDiffuse, kPoints, kHarmonics };
+    template<bool Hits, int Glossy>
     static void gatherGroup(RadiositySolver& s, int g, const std::vector<ValueT>& Bp,
         std::vector<AccT>& G, std::vector<Scalar>* H, const GlossyLanes& lanes,
         SweepProgress& progress)
@@ -324,10 +327,14 @@ struct RadiositySolver::Engine
             // pattern's slots).
             const ControlPoints::Weights* toward[2] = {nullptr, nullptr};
             const ControlPoints::Weights* slotToward = nullptr;
-            if constexpr (Glossy) {
+            const float* harmonic[2] = {nullptr, nullptr};
+            if constexpr (Glossy == kPoints) {
                 toward[0] = &impl.glossy->toward(k, false);
                 toward[1] = &impl.glossy->toward(k, true);
                 slotToward = &impl.glossySlotToward[2 * k];
+            } else if constexpr (Glossy == kHarmonics) {
+                harmonic[0] = impl.glossy->harmonicToward(k, false);
+                harmonic[1] = impl.glossy->harmonicToward(k, true);
             }
             // x (a position in the pattern's order) receives what it sees.
             auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
@@ -335,7 +342,7 @@ struct RadiositySolver::Engine
                     const float w = std::abs(sigmaDotN) * c;
                     G[x] += *seen * w;
                     if constexpr (Hits) (*H)[x] += w;
-                    if constexpr (Glossy) {
+                    if constexpr (Glossy == kPoints) {
                         const uint32_t gx = lanes.at[x];
                         if (gx != GlossySurfaces::kNone) {
                             // x looks along +sigma (sigma . n > 0): the light comes from there.
@@ -349,6 +356,17 @@ struct RadiositySolver::Engine
                                 for (int j = 0; j < 3; ++j) h[u.index[j]] += w * u.weight[j];
                             }
                         }
+                    } else if constexpr (Glossy == kHarmonics) {
+                        const uint32_t gx = lanes.at[x];
+                        if (gx != GlossySurfaces::kNone) {
+                            const float* y = harmonic[sigmaDotN > 0.f ? 0 : 1];
+                            AccT* I = lanes.incident + size_t(gx) * lanes.slots;
+                            for (size_t j = 0; j < lanes.slots; ++j) I[j] += *seen * (w * y[j]);
+                            if constexpr (Hits) {
+                                double* h = lanes.hits + size_t(gx) * lanes.slots;
+                                for (size_t j = 0; j < lanes.slots; ++j) h[j] += w * y[j];
+                            }
+                        }
                     }
                 }
             };
@@ -357,16 +375,24 @@ struct RadiositySolver::Engine
                 impl.rays->cast(sigma, [&](uint32_t x, uint32_t y, float dn) {
                     gather(at[x], y == RayCastVisibility::kNone ? nullptr : &Bp[at[y]], dn);
                 });
-            } else if constexpr (Glossy) {
+            } else if constexpr (Glossy != kDiffuse) {
                 // A glossy sender adds its lobe's light along the sense it faces.
                 pattern.sweep->sweep(sigma, schedule.reversed(k), work,
                     [&](uint32_t y) {
                         ValueT v = Bp[y];
                         const uint32_t gy = lanes.at[y];
                         if (gy != GlossySurfaces::kNone) {
-                            const ControlPoints::Weights& u = *toward[work.facing[y] > 0.f ? 0 : 1];
                             const ValueT* S = lanes.spec + size_t(gy) * lanes.points;
-                            for (int j = 0; j < 3; ++j) v += S[u.index[j]] * float(u.weight[j]);
+                            if constexpr (Glossy == kPoints) {
+                                const ControlPoints::Weights& u =
+                                    *toward[work.facing[y] > 0.f ? 0 : 1];
+                                for (int j = 0; j < 3; ++j) {
+                                    v += S[u.index[j]] * float(u.weight[j]);
+                                }
+                            } else {
+                                const float* h = harmonic[work.facing[y] > 0.f ? 0 : 1];
+                                for (size_t j = 0; j < lanes.points; ++j) v += S[j] * h[j];
+                            }
                         }
                         return v;
                     },
@@ -450,14 +476,14 @@ struct RadiositySolver::Engine
                         lanes.hits = impl.glossyHits[size_t(g)].data();
                     }
                 }
-                if (H) {
-                    H->assign(n, Scalar(0));
-                    if (glossy) gatherGroup<true, true>(s, g, Bp, G, H, lanes, progress);
-                    else gatherGroup<true, false>(s, g, Bp, G, H, lanes, progress);
-                } else {
-                    if (glossy) gatherGroup<false, true>(s, g, Bp, G, H, lanes, progress);
-                    else gatherGroup<false, false>(s, g, Bp, G, H, lanes, progress);
-                }
+                if (H) H->assign(n, Scalar(0));
+                auto sweepAs = [&](auto kind) {
+                    if (H) gatherGroup<true, decltype(kind)::value>(s, g, Bp, G, H, lanes, progress);
+                    else gatherGroup<false, decltype(kind)::value>(s, g, Bp, G, H, lanes, progress);
+                };
+                if (!glossy) sweepAs(std::integral_constant<int, kDiffuse>());
+                else if (glossy->harmonics()) sweepAs(std::integral_constant<int, kHarmonics>());
+                else sweepAs(std::integral_constant<int, kPoints>());
             });
 
             if (measureHits) {
@@ -624,6 +650,12 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
                 impl.glossyAt[p][x] = impl.glossy->glossyOf(order[x]);
             }
             std::vector<uint32_t>& slots = impl.glossySlots[p];
+            if (impl.glossy->harmonics()) {
+                // Every direction splats on every coefficient.
+                slots.resize(P);
+                for (size_t j = 0; j < P; ++j) slots[j] = uint32_t(j);
+                continue;
+            }
             slots = GlossySurfaces::splatPoints(impl.glossy->controlPoints(),
                 impl.schedule->directions(), pattern.directions);
             std::vector<uint32_t> slot(P, GlossySurfaces::kNone);
@@ -706,12 +738,7 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
                         const std::vector<std::pair<openvdb::Vec3d, openvdb::Vec3d>>& in) {
             const GlossySurfaces& gl = *glp;
             openvdb::Vec3f* splat = &impl.glossyDirect[size_t(gl.glossyOf(i)) * P];
-            for (const auto& [dir, light] : in) {
-                const ControlPoints::Weights w = gl.controlPoints().weights(dir);
-                for (int j = 0; j < 3; ++j) {
-                    splat[w.index[j]] += openvdb::Vec3f(light * w.weight[j]);
-                }
-            }
+            for (const auto& [dir, light] : in) gl.splat(dir, openvdb::Vec3f(light), splat);
         };
     }
     impl.direct = directIrradiance(mScene, impl.emitters, d,
@@ -849,10 +876,14 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
                 roughness[size_t(std::clamp(key, 0L, long(roughness.size()) - 1))] = 1;
             }
         }
-        const size_t P = size_t(options.glossy.controlPoints);
-        // The groups' splats: each group holds its pattern's points.
+        const bool harmonics = options.glossy.basis == GlossyBasis::Harmonics;
+        const size_t P = harmonics
+            ? size_t(options.glossy.harmonicOrder + 1) * size_t(options.glossy.harmonicOrder + 1)
+            : size_t(options.glossy.controlPoints);
+        // The groups' splats: each group holds its pattern's points (harmonics: all).
         size_t splats = size_t(kGroups) * P;
-        if (options.directions >= 1 && size_t(options.directions) <= DirectionSet::maxCount()) {
+        if (!harmonics && options.directions >= 1
+            && size_t(options.directions) <= DirectionSet::maxCount()) {
             const DirectionSet dirs = DirectionSet::fromCount(options.directions);
             const ControlPoints points(ControlPoints::orderForCount(int(P)));
             const LeafOrder::Patterns dealt = LeafOrder::patterns(dirs.size(),
@@ -869,6 +900,13 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
         const size_t lobes = size_t(std::count(roughness.begin(), roughness.end(), 1));
         const size_t classes = std::min<size_t>(GlossySurfaces::kMaxClasses, glossy);
         bytes += lobes * P * P * 4 + classes * P * 60;
+        if (harmonics) {
+            // Per voxel, its own normalisation where it measured a share (closed rooms: at
+            // most all of them); per class, two rotations; per lobe, K in float and double.
+            const size_t blocks = SphericalHarmonics::Rotation::blockOffset(
+                options.glossy.harmonicOrder + 1);
+            bytes += glossy * (2 * P + 3) * 8 + classes * 2 * blocks * 8 + lobes * P * P * 8;
+        }
     }
     if (cache) {
         // The budget, or what every direction's report typically needs if that is less.
@@ -911,6 +949,10 @@ RadiositySolver::fingerprint() const
         const int64_t glossy[4] = {g.controlPoints, int64_t(g.model), int64_t(g.rotation),
             int64_t(g.fit)};
         h = hashBytes(glossy, sizeof glossy, h);
+        if (g.basis == GlossyBasis::Harmonics) {
+            const int64_t harmonics[2] = {int64_t(g.basis), g.harmonicOrder};
+            h = hashBytes(harmonics, sizeof harmonics, h);
+        }
     }
     return hashBytes(&mOptions.occlusionDepth, sizeof(float), h);
 }
@@ -1033,8 +1075,7 @@ RadiositySolver::sent(size_t i, const openvdb::Vec3d& toward) const
         if (impl.exact) b += value<T>(mScene.emission(), i);
         if (impl.glossy && impl.glossy->glossyOf(i) != GlossySurfaces::kNone) {
             const size_t P = impl.glossy->points();
-            b += impl.glossy->controlPoints().evaluate(
-                &st.spec[size_t(impl.glossy->glossyOf(i)) * P], toward);
+            b += impl.glossy->evaluate(&st.spec[size_t(impl.glossy->glossyOf(i)) * P], toward);
         }
         if constexpr (std::is_arithmetic_v<T>) v = openvdb::Vec3d(double(b));
         else v = openvdb::Vec3d(b[0], b[1], b[2]);
@@ -1086,8 +1127,13 @@ RadiositySolver::grid() const
                                                  : makeRadiosityGrid(mScene, grey(), stats());
     if (mImpl->glossy) {
         grid->insertMeta(meta::kBrdf, openvdb::StringMetadata(brdfModelName(mOptions.glossy.model)));
-        grid->insertMeta(meta::kControlPoints,
-            openvdb::Int32Metadata(int32_t(mImpl->glossy->points())));
+        if (mImpl->glossy->harmonics()) {
+            grid->insertMeta(meta::kHarmonicOrder,
+                openvdb::Int32Metadata(int32_t(mOptions.glossy.harmonicOrder)));
+        } else {
+            grid->insertMeta(meta::kControlPoints,
+                openvdb::Int32Metadata(int32_t(mImpl->glossy->points())));
+        }
     }
     return grid;
 }

@@ -202,7 +202,8 @@ public:
     /// Statistics of the solve so far (directions, iterations, residual, seconds, lines).
     SolveStats stats() const;
     /// The `radiosity` grid of the current solution, with the contract's metadata (glossy
-    /// scenes: also vdbrad:brdf, the lobe model, and vdbrad:control_points).
+    /// scenes: also vdbrad:brdf, the lobe model, and vdbrad:control_points or, on harmonics,
+    /// vdbrad:harmonic_order).
     openvdb::GridBase::Ptr grid() const;
     /// The `specular_radiosity` grid of a glossy scene (specularRadiosity() on its glossy
     /// voxels, float or Vec3f as `radiosity`): the part of `radiosity` a renderer shows
