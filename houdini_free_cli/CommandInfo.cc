@@ -188,7 +188,7 @@ runInfo(const Arguments& a)
                   << "]";
         for (const char* key : {meta::kDirections, meta::kIterations, meta::kResidual,
                  meta::kLines, meta::kSeconds, meta::kBrdf, meta::kControlPoints,
-                 meta::kHarmonicOrder, meta::kVersion}) {
+                 meta::kHarmonicOrder, meta::kRanks, meta::kVersion}) {
             if (auto m = (*result)[key]) std::cout << ", " << key + 7 << " " << m->str();
         }
         std::cout << "\n";

@@ -5,6 +5,7 @@
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/Acceleration.h"
 #include "vdbrad/DirectionSet.h"
+#include "vdbrad/Distribution.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
@@ -364,6 +365,22 @@ commands()
     return table;
 }
 
+namespace {
+
+// An error one rank may meet alone (memory, a bug): said with its rank, and under mpirun the
+// whole job stops, since the other ranks would wait for this one's sums.
+void
+failed(const std::string& what)
+{
+    const Distribution& ranks = Distribution::world();
+    std::cerr << "vdbrad: error: ";
+    if (ranks.distributed()) std::cerr << "rank " << ranks.rank() << ": ";
+    std::cerr << what << "\n";
+    if (ranks.distributed()) ranks.abort(1);
+}
+
+} // namespace
+
 int
 runTool(const std::vector<std::string>& args)
 {
@@ -399,23 +416,30 @@ runTool(const std::vector<std::string>& args)
         openvdb::initialize();
         return command->run(parsed);
     } catch (const UsageError& e) {
-        std::cerr << "vdbrad: error: " << e.what() << "\n";
+        // Under mpirun every rank reads the same arguments and input: rank 0 says it once.
+        if (Distribution::world().rank() == 0) std::cerr << "vdbrad: error: " << e.what() << "\n";
         return 2;
     } catch (const UserError& e) {
-        std::cerr << "vdbrad: error: " << e.what() << "\n";
+        if (Distribution::world().rank() == 0) std::cerr << "vdbrad: error: " << e.what() << "\n";
         return 1;
     } catch (const Cancelled&) {
-        std::cerr << "vdbrad: cancelled";
-        if (ProgressInterrupter::signalNumber() != 0) {
-            std::cerr << " by signal " << ProgressInterrupter::signalNumber();
+        // mpirun passes a signal to every rank: rank 0 says it; and since a signal may have
+        // reached one rank only, while the others wait for its sums, the job ends here.
+        const Distribution& ranks = Distribution::world();
+        if (ranks.rank() == 0) {
+            std::cerr << "vdbrad: cancelled";
+            if (ProgressInterrupter::signalNumber() != 0) {
+                std::cerr << " by signal " << ProgressInterrupter::signalNumber();
+            }
+            std::cerr << "; no output written\n";
         }
-        std::cerr << "; no output written\n";
+        if (ranks.distributed()) ranks.abort(130);
         return 130;
     } catch (const std::bad_alloc&) {
-        std::cerr << "vdbrad: error: out of memory\n";
+        failed("out of memory");
         return 1;
     } catch (const std::exception& e) {
-        std::cerr << "vdbrad: error: " << errorMessage(e) << "\n";
+        failed(errorMessage(e));
         return 1;
     }
 }

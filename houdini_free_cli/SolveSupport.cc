@@ -2,6 +2,7 @@
 
 #include "ToolSupport.h"
 
+#include "vdbrad/Distribution.h"
 #include "vdbrad/OutputGrids.h"
 
 #include <cctype>
@@ -122,7 +123,8 @@ SolveSession::SolveSession(const Arguments& a, const std::string& in, const std:
     , mThreads((memoryLimit(a), threadLimit(a)))   // a bad --max-memory fails before any work
     , mFile((checkOutput(out, {in}, a.flag("overwrite")), readInput(in)))
     , mLabel(inputLabel(in))
-    , mQuiet(a.flag("quiet"))
+    // Under mpirun rank 0 alone prints, saves checkpoints and writes the output.
+    , mQuiet(a.flag("quiet") || Distribution::world().rank() != 0)
     , mProgress(mQuiet)
 {
 }
@@ -131,7 +133,7 @@ SolveControl
 SolveSession::control(const std::string& preface)
 {
     SolveControl c;
-    c.checkpoint = mCheckpoints.save;
+    if (Distribution::world().rank() == 0) c.checkpoint = mCheckpoints.save;
     c.checkpointEvery = mCheckpoints.every;
     c.resume = mCheckpoints.resume;
     auto first = std::make_shared<bool>(true);
@@ -162,6 +164,18 @@ SolveSession::finish(const openvdb::GridPtrVec& results, const std::string& out,
     if (!mQuiet && !mOutcome.converged) {
         warn(mLabel, "stopped at --iterations " + std::to_string(maxIterations)
             + " with residual " + std::to_string(mOutcome.residual) + " > --tolerance");
+    }
+    const Distribution& ranks = Distribution::world();
+    if (ranks.rank() != 0) return;
+    if (ranks.distributed() && !mQuiet) {
+        std::ostringstream line;
+        line << "vdbrad: " << ranks.ranks() << " ranks: rank 0 exchanged "
+             << ranks.exchangedBytes() / 1048576.0 << " MB in " << ranks.exchangeSeconds()
+             << " s\n";
+        std::cerr << line.str();
+    }
+    for (const openvdb::GridBase::Ptr& grid : results) {
+        grid->insertMeta(meta::kRanks, openvdb::Int32Metadata(ranks.ranks()));
     }
     writeOutput(withGrids(mFile, results), out);
     mCheckpoints.finish();

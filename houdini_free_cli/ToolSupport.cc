@@ -1,5 +1,6 @@
 #include "ToolSupport.h"
 
+#include "vdbrad/Distribution.h"
 #include "vdbrad/Version.h"
 
 #include <cmath>
@@ -53,6 +54,11 @@ readInput(const std::string& path)
 {
     try {
         if (isStdin(path)) {
+            if (Distribution::world().distributed()) {
+                // mpirun gives standard input to rank 0 alone.
+                throw UsageError("under mpirun, give the input as a file (only rank 0 has "
+                                 "standard input)");
+            }
             if (::isatty(STDIN_FILENO) == 1) {
                 throw UsageError("refusing to read VDB data from a terminal; pipe a file in");
             }
@@ -96,6 +102,7 @@ writeOutput(const VdbFile& file, const std::string& path)
 void
 warn(const std::string& label, const std::string& what)
 {
+    if (Distribution::world().rank() != 0) return;   // said once, by rank 0
     std::cerr << "vdbrad: warning: " << label << ": " << what << "\n";
 }
 

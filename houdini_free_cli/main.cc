@@ -1,8 +1,14 @@
 // vdbrad: the Houdini-free command-line host of the vdbrad library.
 #include "Commands.h"
 
+#include "vdbrad/Distribution.h"
+
 int
 main(int argc, char** argv)
 {
-    return vdbrad::cli::runTool(std::vector<std::string>(argv + 1, argv + argc));
+    // Before any thread starts: under mpirun this initialises MPI (vdbrad/Distribution.h).
+    vdbrad::Distribution& ranks = vdbrad::Distribution::world();
+    const int status = vdbrad::cli::runTool(std::vector<std::string>(argv + 1, argv + argc));
+    ranks.finalize();
+    return status;
 }

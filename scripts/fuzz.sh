@@ -12,7 +12,7 @@ targets=${FUZZ_TARGETS:-$(for f in fuzz/fuzz_*.cc; do basename "$f" .cc; done)}
 
 cmake -S . -B build-fuzz -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
   -DCMAKE_BUILD_TYPE=Debug -DVDBRAD_FUZZ=ON -DVDBRAD_BUILD_TESTS=OFF \
-  -DVDBRAD_BUILD_BENCHMARKS=OFF >/dev/null
+  -DVDBRAD_BUILD_BENCHMARKS=OFF -DVDBRAD_MPI=OFF >/dev/null
 # shellcheck disable=SC2086 # one target name per word
 cmake --build build-fuzz -j"$(nproc)" --target $targets
 

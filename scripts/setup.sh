@@ -6,11 +6,12 @@
 # libclang-rt-14-dev (libFuzzer and clang's sanitizer runtimes, only recommended by clang) build
 # the fuzz targets (scripts/fuzz.sh); g++'s own ASan/UBSan runtimes serve scripts/sanitize.sh.
 # libeigen3-dev and libglpk-dev fit glossy lobes to control points (least squares, and the
-# max-norm linear programs).
+# max-norm linear programs). libopenmpi-dev and openmpi-bin distribute solves over MPI ranks
+# (`mpirun -np K vdbrad solve ...`; the build does without them, the tests use them).
 set -euo pipefail
 pkgs=(cmake g++ make libopenvdb-dev libopenvdb-tools libboost-dev libboost-iostreams-dev
       libopenexr-dev libglm-dev libgtest-dev openexr time clang libclang-rt-14-dev
-      libeigen3-dev libglpk-dev)
+      libeigen3-dev libglpk-dev libopenmpi-dev openmpi-bin)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -375,6 +375,76 @@ TEST_F(CliTest, SolveAndSolveCloudGiveTheSameBitsOnOneTwoAndEightThreads)
     }
 }
 
+#ifdef VDBRAD_MPIEXEC
+TEST_F(CliTest, DistributedSolvesGiveTheSerialBits)
+{
+    // The same tool under mpirun with 2 and 3 ranks (oversubscribed on CI's two cores; CI runs
+    // as root): each rank sweeps its accumulator groups, rank 0 writes (Distribution.h). Surface,
+    // glossy and cloud solves give the serial tool's bits, and say how many ranks solved them.
+    const std::string mpirun = std::string("'") + VDBRAD_MPIEXEC
+        + "' --oversubscribe --allow-run-as-root -np ";
+    const std::string tool = std::string(" '") + VDBRAD_CLI_PATH + "' ";
+    const std::string mesh = std::string(VDBRAD_SOURCE_DIR) + "/samples/meshes/glossy_cornell.obj";
+    ASSERT_EQ(sh("vdbrad make cornell c.vdb --res 16 --quiet && "
+                 "vdbrad make cumulus k.vdb --res 24 --quiet && "
+                 "vdbrad voxelize " + mesh + " g.vdb --res 16 --quiet").status, 0);
+    const std::string solve = "solve c.vdb s{}.vdb --directions 60 --iterations 6 --quiet";
+    const std::string cloud = "solve-cloud k.vdb k{}.vdb --directions 60 --iterations 6 "
+                              "--accelerate anderson --quiet";
+    const std::string glossy = "solve g.vdb g{}.vdb --directions 60 --iterations 4 --quiet";
+    auto named = [](std::string cmd, int ranks) {
+        return cmd.replace(cmd.find("{}"), 2, std::to_string(ranks));
+    };
+    for (const std::string& cmd : {solve, cloud, glossy}) {
+        ASSERT_EQ(sh("vdbrad " + named(cmd, 1)).status, 0) << cmd;
+    }
+    for (int ranks : {2, 3}) {
+        for (const std::string& cmd : {solve, cloud, glossy}) {
+            const Result r = sh(mpirun + std::to_string(ranks) + tool + named(cmd, ranks));
+            ASSERT_EQ(r.status, 0) << r.err;
+            EXPECT_EQ(r.err, "") << cmd;
+        }
+        const std::string n = std::to_string(ranks);
+        EXPECT_TRUE(valueBits(path("s" + n + ".vdb"), "radiosity")
+            == valueBits(path("s1.vdb"), "radiosity")) << ranks << " ranks";
+        EXPECT_TRUE(valueBits(path("k" + n + ".vdb"), "mean_intensity")
+            == valueBits(path("k1.vdb"), "mean_intensity")) << ranks << " ranks";
+        EXPECT_TRUE(valueBits(path("g" + n + ".vdb"), "radiosity")
+            == valueBits(path("g1.vdb"), "radiosity")) << ranks << " ranks";
+        EXPECT_TRUE(valueBits(path("g" + n + ".vdb"), "specular_radiosity")
+            == valueBits(path("g1.vdb"), "specular_radiosity")) << ranks << " ranks";
+        const openvdb::GridBase::ConstPtr B =
+            findGrid(readVdbFile(path("s" + n + ".vdb")).grids, "radiosity");
+        ASSERT_TRUE(B && (*B)["vdbrad:ranks"]);
+        EXPECT_EQ((*B)["vdbrad:ranks"]->str(), n);
+    }
+    const openvdb::GridBase::ConstPtr B = findGrid(readVdbFile(path("s1.vdb")).grids, "radiosity");
+    ASSERT_TRUE(B && (*B)["vdbrad:ranks"]);
+    EXPECT_EQ((*B)["vdbrad:ranks"]->str(), "1");
+    // Standard input reaches rank 0 only: refused in one line, nothing written.
+    const Result piped = sh("cat c.vdb | " + mpirun + "2" + tool + "solve - p.vdb");
+    EXPECT_NE(piped.status, 0);
+    EXPECT_NE(piped.err.find("vdbrad: error: under mpirun, give the input as a file"),
+        std::string::npos) << piped.err;
+    EXPECT_EQ(piped.err.find("vdbrad: error:"), piped.err.rfind("vdbrad: error:")) << piped.err;
+    EXPECT_FALSE(exists(path("p.vdb")));
+    // A rank killed mid-solve (SIGKILL: nothing of it can react) or stopped by a signal sent
+    // to it alone (SIGTERM: it cancels and ends the job, since the others wait for its sums)
+    // ends the whole job with a non-zero status and no output, not a hang.
+    ASSERT_EQ(sh("vdbrad make cornell big.vdb --res 48 --quiet").status, 0);
+    for (const std::string signal : {"KILL", "TERM"}) {
+        const Result killed = sh("{ " + mpirun + "2" + tool + "solve big.vdb killed.vdb "
+            "--directions 1000 --iterations 200 --tolerance 0 --visibility-cache 0 --quiet & "
+            "job=$!; for i in $(seq 600); do "
+            "for p in $(pgrep -f 'solve big.vdb killed.vdb'); do "
+            "if tr '\\0' '\\n' < /proc/$p/environ 2>/dev/null | grep -qx OMPI_COMM_WORLD_RANK=1; "
+            "then kill -" + signal + " $p; break 2; fi; done; sleep 0.05; done; wait $job; }");
+        EXPECT_NE(killed.status, 0) << signal << ": " << killed.err;
+        EXPECT_FALSE(exists(path("killed.vdb"))) << signal;
+    }
+}
+#endif
+
 TEST_F(CliTest, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits)
 {
     // Each run is killed (SIGTERM) once its first checkpoint exists, then resumed to the same

@@ -1,6 +1,7 @@
 #include "vdbrad/CloudTransfer.h"
 
 #include "vdbrad/Denormals.h"
+#include "vdbrad/Distribution.h"
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
 #include "vdbrad/FogSurfaces.h"
@@ -1002,9 +1003,12 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     for (size_t v = 0; v < surfaceCount; ++v) surfaceEmits[v] = impl.surfaceSends(v);
     Impl::Sweep sw{S, B, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {},
         surfaceEmits, {}, {}};
-    SweepProgress progress(interrupt, directions().size());
+    // Under MPI each rank sweeps its own groups (Distribution.h).
+    const Distribution& ranks = Distribution::world();
+    auto mine = [&](int g) { return ranks.owns(g); };
+    SweepProgress progress(interrupt, schedule.directionsOf(mine));
     const size_t perBatch = Impl::batchSize(n, M);
-    schedule.forEachGroup(progress, "cloud transfer", [](int) { return true; }, [&](int g) {
+    schedule.forEachGroup(progress, "cloud transfer", mine, [&](int g) {
         sw.G[size_t(g)].assign(n * M, 0.f);
         sw.landed[size_t(g)].assign(cells, 0.0);
         sw.onSurface[size_t(g)].assign(surfaceCount, 0.0);
@@ -1017,6 +1021,20 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         }
     });
 
+    if (ranks.distributed()) {
+        // Every group's results from its owner (the light wrapping a periodic box: one slice
+        // per direction, written by its owner alone), then summed as one process does.
+        for (int g = 0; g < SweepSchedule::kGroups; ++g) {
+            if (schedule.patternOfGroup(g).empty()) continue;
+            const int owner = ranks.ownerOf(g);
+            ranks.share(sw.G[size_t(g)], n * M, owner);
+            ranks.share(sw.landed[size_t(g)], cells, owner);
+            ranks.share(sw.onSurface[size_t(g)], surfaceCount, owner);
+            ranks.share(sw.escaped[size_t(g)].data(), sizeof(double) * 2, owner);
+            ranks.share(&sw.backs[size_t(g)], sizeof(double), owner);
+        }
+        ranks.combine(sw.leftNow);
+    }
     // Moments from the groups, in a fixed order (bit-identical for any thread count).
     std::vector<double> sum(n * M, 0.0);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {

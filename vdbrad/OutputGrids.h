@@ -29,6 +29,7 @@ constexpr const char* kLines = "vdbrad:lines";
 constexpr const char* kVersion = "vdbrad:version";
 constexpr const char* kBrdf = "vdbrad:brdf";
 constexpr const char* kControlPoints = "vdbrad:control_points";
+constexpr const char* kRanks = "vdbrad:ranks";
 constexpr const char* kHarmonicOrder = "vdbrad:harmonic_order";
 } // namespace meta
 

@@ -1,6 +1,7 @@
 #include "vdbrad/RadiositySolver.h"
 
 #include "vdbrad/Denormals.h"
+#include "vdbrad/Distribution.h"
 #include "vdbrad/Enclosure.h"
 #include "vdbrad/Errors.h"
 #include "vdbrad/GlossySurfaces.h"
@@ -431,7 +432,10 @@ struct RadiositySolver::Engine
         std::vector<ValueT>& U = impl.state<ValueT>().unshot;
         const std::vector<ValueT>& source = shooting ? U : B;
         std::vector<std::vector<Scalar>> hits(static_cast<size_t>(kGroups));
-        SweepProgress progress(interrupt, s.directions().size());
+        // Under MPI each rank sweeps its own groups (Distribution.h) and counts only theirs.
+        const Distribution& ranks = Distribution::world();
+        SweepProgress progress(interrupt,
+            schedule.directionsOf([&](int g) { return ranks.owns(g); }));
         const std::vector<ValueT> previous = B;
         // Glossy voxels: per group, the light splatted on their points.
         Impl::State<ValueT>& st = impl.state<ValueT>();
@@ -448,12 +452,13 @@ struct RadiositySolver::Engine
             auto inPhase = [&](int g) {
                 return phases == 1 || g / SweepSchedule::kPatterns == phase;
             };
+            auto mineInPhase = [&](int g) { return inPhase(g) && ranks.owns(g); };
             // B in each pattern's order, so that the sweeps read it sequentially.
             std::array<std::vector<ValueT>, SweepSchedule::kPatterns> ordered;
             for (size_t p = 0; p < ordered.size(); ++p) {
                 if (!schedule.pattern(p).empty()) schedule.toPatternOrder(p, source, ordered[p]);
             }
-            schedule.forEachGroup(progress, "radiosity solve", inPhase, [&](int g) {
+            schedule.forEachGroup(progress, "radiosity solve", mineInPhase, [&](int g) {
                 std::vector<AccT>& G = gathered[size_t(g)];
                 G.assign(n, openvdb::zeroVal<AccT>());
                 std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
@@ -485,6 +490,22 @@ struct RadiositySolver::Engine
                 else if (glossy->harmonics()) sweepAs(std::integral_constant<int, kHarmonics>());
                 else sweepAs(std::integral_constant<int, kPoints>());
             });
+            if (ranks.distributed()) {
+                // Every rank gets every group's sums from its owner, then sums them in group
+                // order as one process does: the same bits for any number of ranks.
+                for (int g = 0; g < kGroups; ++g) {
+                    if (!inPhase(g) || schedule.patternOfGroup(g).empty()) continue;
+                    const int owner = ranks.ownerOf(g);
+                    ranks.share(gathered[size_t(g)], n, owner);
+                    if (measureHits) ranks.share(hits[size_t(g)], n, owner);
+                    if (glossy) {
+                        const size_t count = glossyN
+                            * impl.glossySlots[SweepSchedule::patternOf(g)].size();
+                        ranks.share(st.incident[size_t(g)], count, owner);
+                        if (measureHits) ranks.share(impl.glossyHits[size_t(g)], count, owner);
+                    }
+                }
+            }
 
             if (measureHits) {
                 tbb::parallel_for(tbb::blocked_range<size_t>(0, n),

@@ -134,6 +134,16 @@ public:
     void toPatternOrder(size_t p, const std::vector<T>& in, std::vector<T>& out,
         size_t width = 1) const;
 
+    /// Directions of the groups @a selected(g) (e.g. a rank's, Distribution.h).
+    template<typename SelectT> size_t directionsOf(SelectT&& selected) const
+    {
+        size_t count = 0;
+        for (int g = 0; g < kGroups; ++g) {
+            if (selected(g)) forDirections(g, [&](size_t) { ++count; });
+        }
+        return count;
+    }
+
     /// @brief Add @a width values of voxel @a i from each group's accumulator (in its pattern's
     /// order; an empty one is skipped) to @a out, in group order, as WideT.
     template<typename WideT, typename ArraysT>

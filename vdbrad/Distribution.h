@@ -1,0 +1,76 @@
+// Distribution: one solve spread over the processes of an MPI job (thesis §6.2.1.2, direction
+// subsets).
+//
+// The sweeps' accumulator groups (SweepSchedule.h: eight, each a fixed share of the directions,
+// summed per voxel in group order) are dealt to the ranks, group g to rank g mod K: each rank
+// sweeps its groups with its own threads, then every group's accumulator is broadcast from its
+// owner, once per half-iteration (the in-place update's phases hold groups 0-3 and 4-7, so two
+// ranks get two groups of each). Every rank then holds every group and sums them in group order,
+// exactly as one process does: the result is the serial tool's, bit for bit, for any number of
+// ranks and threads. Every rank keeps the whole scene and the iterate (the data distribution of
+// §6.2.2 is not done); what moves per half-iteration is (K - 1) / K of four groups' per-voxel
+// sums per rank.
+//
+// Built without MPI (CMake found none, or -DVDBRAD_MPI=OFF), or run outside mpirun, world() is
+// one process and nothing is exchanged.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+namespace vdbrad {
+
+class Distribution
+{
+public:
+    /// @brief The job's processes (MPI_COMM_WORLD), MPI initialised on the first call if this
+    /// process was started by mpirun (Open MPI, MPICH or PMIx environment), else one process.
+    /// Call it first from the main thread, before any other thread runs.
+    static Distribution& world();
+    /// Whether this build can distribute at all (compiled with MPI).
+    static bool available();
+
+    int rank() const { return mRank; }
+    int ranks() const { return mRanks; }
+    bool distributed() const { return mRanks > 1; }
+    /// The rank that sweeps accumulator group @a g.
+    int ownerOf(int g) const { return g % mRanks; }
+    bool owns(int g) const { return ownerOf(g) == mRank; }
+
+    /// @brief Every rank gets @a owner's @a bytes at @a data (a broadcast; a no-op alone).
+    void share(void* data, size_t bytes, int owner) const;
+    /// @brief @a values resized to @a count and given @a owner's values.
+    template<typename T>
+    void share(std::vector<T>& values, size_t count, int owner) const
+    {
+        values.resize(count);
+        share(values.data(), count * sizeof(T), owner);
+    }
+    /// @brief @a values summed over the ranks, in place, where at most one rank holds a
+    /// value other than 0 in each (so the sum is that value, exactly).
+    void combine(std::vector<double>& values) const;
+    /// Whether @a flag is true on any rank (every rank calls it).
+    bool any(bool flag) const;
+    /// The sum of @a value over the ranks.
+    double sum(double value) const;
+
+    /// What this rank's exchanges have moved (bytes received or sent, as a broadcast's root)
+    /// and the seconds it spent in them (waiting for slower ranks included).
+    size_t exchangedBytes() const { return mBytes; }
+    double exchangeSeconds() const { return mSeconds; }
+
+    /// @brief End the job now, all ranks, with exit status @a code (MPI_Abort; std::exit
+    /// alone).
+    [[noreturn]] void abort(int code) const;
+    /// MPI_Finalize, once, if MPI was initialised (at the end of main()).
+    void finalize();
+
+private:
+    Distribution() = default;
+    int mRank = 0, mRanks = 1;
+    bool mInitialised = false;
+    mutable size_t mBytes = 0;
+    mutable double mSeconds = 0.0;
+};
+
+} // namespace vdbrad
