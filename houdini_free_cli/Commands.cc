@@ -412,6 +412,11 @@ runTool(const std::vector<std::string>& args)
             std::cout << commandHelp(*command);
             return 0;
         }
+        if (Distribution::world().distributed() && command->name != "solve"
+            && command->name != "solve-cloud") {
+            throw UsageError("only solve and solve-cloud run under mpirun; run '"
+                + command->name + "' as one process");
+        }
         const Arguments parsed = parseCommand(*command, rest);
         openvdb::initialize();
         return command->run(parsed);

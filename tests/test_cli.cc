@@ -428,6 +428,12 @@ TEST_F(CliTest, DistributedSolvesGiveTheSerialBits)
         std::string::npos) << piped.err;
     EXPECT_EQ(piped.err.find("vdbrad: error:"), piped.err.rfind("vdbrad: error:")) << piped.err;
     EXPECT_FALSE(exists(path("p.vdb")));
+    // Other commands run as one process.
+    const Result render = sh(mpirun + "2" + tool + "render s1.vdb r.exr");
+    EXPECT_EQ(render.status, 2);
+    EXPECT_NE(render.err.find("vdbrad: error: only solve and solve-cloud run under mpirun"),
+        std::string::npos) << render.err;
+    EXPECT_FALSE(exists(path("r.exr")));
     // A rank killed mid-solve (SIGKILL: nothing of it can react) or stopped by a signal sent
     // to it alone (SIGTERM: it cancels and ends the job, since the others wait for its sums)
     // ends the whole job with a non-zero status and no output, not a hang.

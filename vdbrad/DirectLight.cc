@@ -1,5 +1,6 @@
 #include "vdbrad/DirectLight.h"
 
+#include "vdbrad/Distribution.h"
 #include "vdbrad/Errors.h"
 #include "vdbrad/SampleHash.h"
 #include "vdbrad/SurfacePlanes.h"
@@ -306,12 +307,25 @@ directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLight
     std::atomic<size_t> done{0};
     std::atomic<bool> cancelled{false};
 
+    // Under MPI the ranks share the voxels out in blocks (Distribution.h): each voxel's value
+    // depends on itself alone (its own sample seed), so the sum over ranks of values computed
+    // by one rank and zeros elsewhere is the serial result, bit for bit. The incident sink sees
+    // only this rank's voxels: its owner combines what it gathered.
+    const Distribution& ranks = Distribution::world();
+    constexpr size_t kBlock = 1024;
+    std::vector<size_t> mine;
+    for (size_t b = 0; b * kBlock < n; ++b) {
+        if (ranks.ownsBlock(b)) mine.push_back(b);
+    }
+    const size_t total = std::max<size_t>(mine.size() * kBlock, 1);
     using Range = tbb::blocked_range<size_t>;
-    tbb::parallel_for(Range(0, n, 64), [&](const Range& r) {
+    tbb::parallel_for(Range(0, mine.size() * kBlock, 64), [&](const Range& r) {
         if (cancelled) return;
         DirectLightSampler::Workspace ws(sampler);
         std::vector<std::pair<Vec3d, Vec3d>> pairs;
-        for (size_t i = r.begin(); i != r.end(); ++i) {
+        for (size_t k = r.begin(); k != r.end(); ++k) {
+            const size_t i = mine[k / kBlock] * kBlock + k % kBlock;
+            if (i >= n) continue;
             const bool wanted = incident && incident->wants(i);
             ws.incident = wanted ? &pairs : nullptr;
             out.irradiance[i] = openvdb::Vec3f(sampler.at(scene.voxels().coord(i).asVec3d(),
@@ -321,13 +335,16 @@ directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLight
         rays += ws.rays;
         factors += ws.factors;
         const size_t d = done += r.size();
-        if (interrupt && interrupt->wasInterrupted(int(100 * d / std::max<size_t>(n, 1)))) {
-            cancelled = true;
-        }
+        if (interrupt && interrupt->wasInterrupted(int(100 * d / total))) cancelled = true;
     });
     if (cancelled) throw Cancelled("direct light");
     out.rays = rays;
     out.factors = factors;
+    if (ranks.distributed()) {
+        ranks.combine(&out.irradiance[0][0], 3 * n);
+        out.rays = uint64_t(ranks.sum(double(out.rays)));
+        out.factors = uint64_t(ranks.sum(double(out.factors)));
+    }
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return out;
 }

@@ -75,20 +75,43 @@ Distribution::share(void* data, size_t bytes, int owner) const
 #endif
 }
 
+#ifdef VDBRAD_WITH_MPI
+namespace {
+
+template<typename T>
+void
+allSum(T* values, size_t count, MPI_Datatype type, size_t& bytes, double& seconds)
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    constexpr size_t kPiece = size_t(1) << 27;
+    for (size_t at = 0; at < count; at += kPiece) {
+        const size_t n = count - at < kPiece ? count - at : kPiece;
+        MPI_Allreduce(MPI_IN_PLACE, values + at, int(n), type, MPI_SUM, MPI_COMM_WORLD);
+    }
+    bytes += count * sizeof(T);
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+} // namespace
+#endif
+
 void
 Distribution::combine(std::vector<double>& values) const
 {
     if (mRanks == 1 || values.empty()) return;
 #ifdef VDBRAD_WITH_MPI
-    const auto t0 = std::chrono::steady_clock::now();
-    constexpr size_t kPiece = size_t(1) << 27;
-    for (size_t at = 0; at < values.size(); at += kPiece) {
-        const size_t n = values.size() - at < kPiece ? values.size() - at : kPiece;
-        MPI_Allreduce(MPI_IN_PLACE, values.data() + at, int(n), MPI_DOUBLE, MPI_SUM,
-            MPI_COMM_WORLD);
-    }
-    mBytes += values.size() * sizeof(double);
-    mSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    allSum(values.data(), values.size(), MPI_DOUBLE, mBytes, mSeconds);
+#endif
+}
+
+void
+Distribution::combine(float* values, size_t count) const
+{
+    if (mRanks == 1 || count == 0) return;
+#ifdef VDBRAD_WITH_MPI
+    allSum(values, count, MPI_FLOAT, mBytes, mSeconds);
+#else
+    (void)values;
 #endif
 }
 

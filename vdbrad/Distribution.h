@@ -9,7 +9,9 @@
 // exactly as one process does: the result is the serial tool's, bit for bit, for any number of
 // ranks and threads. Every rank keeps the whole scene and the iterate (the data distribution of
 // §6.2.2 is not done); what moves per half-iteration is (K - 1) / K of four groups' per-voxel
-// sums per rank.
+// sums per rank. Per-voxel work that depends on the voxel alone (the exact direct light) is
+// shared out in blocks (ownsBlock) and combined by a sum in which one rank's value meets the
+// others' zeros (combine): exact too.
 //
 // Built without MPI (CMake found none, or -DVDBRAD_MPI=OFF), or run outside mpirun, world() is
 // one process and nothing is exchanged.
@@ -49,6 +51,10 @@ public:
     /// @brief @a values summed over the ranks, in place, where at most one rank holds a
     /// value other than 0 in each (so the sum is that value, exactly).
     void combine(std::vector<double>& values) const;
+    void combine(float* values, size_t count) const;
+    /// @brief Whether this rank computes block @a b of a per-voxel loop that the ranks share
+    /// out in blocks (dealt round-robin, so that each gets every part of the scene).
+    bool ownsBlock(size_t b) const { return int(b % size_t(mRanks)) == mRank; }
     /// Whether @a flag is true on any rank (every rank calls it).
     bool any(bool flag) const;
     /// The sum of @a value over the ranks.

@@ -765,6 +765,10 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
     impl.direct = directIrradiance(mScene, impl.emitters, d,
         impl.regions.cavities > 0 ? &impl.regions.region : nullptr, interrupt,
         impl.glossy ? &sink : nullptr);
+    // Under MPI each rank's sink took its own voxels' arrivals (Distribution.h).
+    if (!impl.glossyDirect.empty()) {
+        Distribution::world().combine(&impl.glossyDirect[0][0], 3 * impl.glossyDirect.size());
+    }
     const std::vector<openvdb::Vec3f>& D = impl.direct.irradiance;
     if (mScene.isRgb()) {
         std::vector<openvdb::Vec3f> v(n);
