@@ -428,6 +428,28 @@ TEST_F(CliTest, DistributedSolvesGiveTheSerialBits)
         std::string::npos) << piped.err;
     EXPECT_EQ(piped.err.find("vdbrad: error:"), piped.err.rfind("vdbrad: error:")) << piped.err;
     EXPECT_FALSE(exists(path("p.vdb")));
+    // Checkpoints under mpirun: the job stopped (SIGTERM to its processes, as a batch system
+    // does) once rank 0 has saved one, then resumed by 3 ranks, gives the serial run's bits.
+    // (Signalled through mpirun, which passes it on seconds later, the ranks ran past the 12
+    // iterations compared here.)
+    ASSERT_EQ(sh("vdbrad make cornell big.vdb --res 48 --quiet && vdbrad solve big.vdb full.vdb "
+                 "--directions 1000 --iterations 12 --tolerance 0 --visibility-cache 0 --quiet").status, 0);
+    const Result stopped = sh("rm -f ck part.vdb; " + mpirun + "2" + tool + "solve big.vdb "
+        "part.vdb --directions 1000 --visibility-cache 0 --iterations 100000 --tolerance 0 --checkpoint ck --checkpoint-every 3 "
+        "--quiet & job=$!; for i in $(seq 600); do [ -e ck ] && break; sleep 0.05; done; "
+        "for p in $(pgrep -f 'solve big.vdb part.vdb'); do tr '\\0' '\\n' < /proc/$p/environ "
+        "2>/dev/null | grep -q '^OMPI_COMM_WORLD_RANK=' && kill -TERM $p; done; wait $job; "
+        "echo \"status $?\"");
+    // (The ranks: the processes with a rank in their environment, not this shell.)
+    EXPECT_NE(stopped.out.find("status "), std::string::npos) << stopped.out << stopped.err;
+    EXPECT_EQ(stopped.out.find("status 0"), std::string::npos) << stopped.out << stopped.err;
+    EXPECT_FALSE(exists(path("part.vdb")));
+    ASSERT_TRUE(exists(path("ck"))) << stopped.err;
+    const Result resumed = sh(mpirun + "3" + tool + "solve big.vdb resumed.vdb --directions 1000 --visibility-cache 0 "
+        "--iterations 12 --tolerance 0 --resume ck --quiet");
+    ASSERT_EQ(resumed.status, 0) << resumed.err;
+    EXPECT_TRUE(valueBits(path("resumed.vdb"), "radiosity") == valueBits(path("full.vdb"),
+        "radiosity"));
     // Other commands run as one process.
     const Result render = sh(mpirun + "2" + tool + "render s1.vdb r.exr");
     EXPECT_EQ(render.status, 2);
@@ -437,7 +459,6 @@ TEST_F(CliTest, DistributedSolvesGiveTheSerialBits)
     // A rank killed mid-solve (SIGKILL: nothing of it can react) or stopped by a signal sent
     // to it alone (SIGTERM: it cancels and ends the job, since the others wait for its sums)
     // ends the whole job with a non-zero status and no output, not a hang.
-    ASSERT_EQ(sh("vdbrad make cornell big.vdb --res 48 --quiet").status, 0);
     for (const std::string signal : {"KILL", "TERM"}) {
         const Result killed = sh("{ " + mpirun + "2" + tool + "solve big.vdb killed.vdb "
             "--directions 1000 --iterations 200 --tolerance 0 --visibility-cache 0 --quiet & "
