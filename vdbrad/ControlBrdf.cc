@@ -1,11 +1,8 @@
 #include "vdbrad/ControlBrdf.h"
 
-#include <Eigen/Core>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <type_traits>
 
 namespace vdbrad {
 
@@ -77,33 +74,15 @@ ControlBrdf::ControlBrdf(const ControlPoints& points, const Brdf& brdf, FitNorm 
         if (used[o]) mSupport.push_back(uint32_t(o));
     }
     const size_t s = mSupport.size();
-    mCompact.resize(s * s);
-    mCompactWide.resize(s * s);
+    std::vector<double> compact(s * s);
     for (size_t o = 0; o < s; ++o) {
         for (size_t i = 0; i < s; ++i) {
-            mCompact[o * s + i] = mKernel[size_t(mSupport[o]) * P + mSupport[i]];
-            mCompactWide[o * s + i] = double(mCompact[o * s + i]);
+            compact[o * s + i] = double(mKernel[size_t(mSupport[o]) * P + mSupport[i]]);
         }
     }
+    mCompact.assign(s, std::move(compact));
     mSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
-
-template<typename S>
-void
-ControlBrdf::apply(const S* in, S* out, int width) const
-{
-    using Matrix = Eigen::Matrix<S, Eigen::Dynamic, Eigen::Dynamic>;
-    const Eigen::Index s = Eigen::Index(mSupport.size());
-    const S* k = nullptr;
-    if constexpr (std::is_same_v<S, float>) k = mCompact.data();
-    else k = mCompactWide.data();
-    // K is symmetric: its row-major storage is also its column-major one.
-    const Eigen::Map<const Matrix> K(k, s, s);
-    Eigen::Map<Matrix>(out, s, width).noalias() = K * Eigen::Map<const Matrix>(in, s, width);
-}
-
-template void ControlBrdf::apply(const float*, float*, int) const;
-template void ControlBrdf::apply(const double*, double*, int) const;
 
 double
 ControlBrdf::value(const Vec3d& wi, const Vec3d& wo) const

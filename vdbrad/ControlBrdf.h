@@ -24,6 +24,7 @@
 #include "vdbrad/Brdf.h"
 #include "vdbrad/ControlPoints.h"
 #include "vdbrad/SphericalFit.h"
+#include "vdbrad/SymmetricKernel.h"
 
 #include <vector>
 
@@ -48,7 +49,10 @@ public:
     const std::vector<uint32_t>& support() const { return mSupport; }
     /// @brief out = K in restricted to the support: @a in and @a out hold @a width columns
     /// (channels) of support().size() values each, in support order. S: float or double.
-    template<typename S> void apply(const S* in, S* out, int width) const;
+    template<typename S> void apply(const S* in, S* out, int width) const
+    {
+        mCompact.apply(in, out, width);
+    }
 
     /// @brief The fitted pi lobe(wi, wo): sum_oi omega_o(wo) K_oi omega_i(wi) (local frame).
     double value(const openvdb::math::Vec3d& wi, const openvdb::math::Vec3d& wo) const;
@@ -64,10 +68,9 @@ private:
     Brdf mBrdf;
     std::vector<float> mKernel;
     std::vector<uint32_t> mSupport;
-    // K over the support, dense (symmetric, so either storage order), in both precisions:
-    // the solver's reflections are one small matrix product each (Eigen's, vectorised).
-    std::vector<float> mCompact;
-    std::vector<double> mCompactWide;
+    // K over the support, dense, in both precisions: the solver's reflections are one small
+    // matrix product each (Eigen's, vectorised).
+    SymmetricKernel mCompact;
     double mMaxError = 0.0, mRmsError = 0.0, mSeconds = 0.0;
 };
 

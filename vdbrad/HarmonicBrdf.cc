@@ -9,7 +9,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <type_traits>
 
 namespace vdbrad {
 
@@ -67,34 +66,16 @@ HarmonicBrdf::HarmonicBrdf(const SphericalHarmonics& harmonics, const Brdf& brdf
     for (int l = 0; l <= harmonics.order(); ++l) {
         for (int mm = -l; mm <= l; ++mm) parity[size_t(l * l + l + mm)] = (l + mm) % 2 ? 0.0 : 2.0;
     }
-    mWide.resize(N * N);
-    mNarrow.resize(N * N);
+    std::vector<double> kernel(N * N);
     for (size_t a = 0; a < N; ++a) {
         for (size_t b = 0; b < N; ++b) {
-            mWide[a * N + b] = parity[a] * parity[b] * 0.5 * (K(Eigen::Index(a), Eigen::Index(b))
+            kernel[a * N + b] = parity[a] * parity[b] * 0.5 * (K(Eigen::Index(a), Eigen::Index(b))
                 + K(Eigen::Index(b), Eigen::Index(a)));
-            mNarrow[a * N + b] = float(mWide[a * N + b]);
         }
     }
+    mKernel.assign(N, std::move(kernel));
     mSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
-
-template<typename S>
-void
-HarmonicBrdf::apply(const S* in, S* out, int width) const
-{
-    using Matrix = Eigen::Matrix<S, Eigen::Dynamic, Eigen::Dynamic>;
-    const Eigen::Index n = Eigen::Index(size());
-    const S* k = nullptr;
-    if constexpr (std::is_same_v<S, float>) k = mNarrow.data();
-    else k = mWide.data();
-    // K is symmetric: its row-major storage is also its column-major one.
-    const Eigen::Map<const Matrix> K(k, n, n);
-    Eigen::Map<Matrix>(out, n, width).noalias() = K * Eigen::Map<const Matrix>(in, n, width);
-}
-
-template void HarmonicBrdf::apply(const float*, float*, int) const;
-template void HarmonicBrdf::apply(const double*, double*, int) const;
 
 double
 HarmonicBrdf::value(const Vec3d& wi, const Vec3d& wo) const
@@ -106,7 +87,7 @@ HarmonicBrdf::value(const Vec3d& wi, const Vec3d& wo) const
     double v = 0.0;
     for (size_t p = 0; p < N; ++p) {
         double row = 0.0;
-        for (size_t q = 0; q < N; ++q) row += mWide[p * N + q] * b[q];
+        for (size_t q = 0; q < N; ++q) row += mKernel.wide()[p * N + q] * b[q];
         v += a[p] * row;
     }
     return v;

@@ -29,6 +29,7 @@
 
 #include "vdbrad/Brdf.h"
 #include "vdbrad/SphericalHarmonics.h"
+#include "vdbrad/SymmetricKernel.h"
 
 #include <vector>
 
@@ -45,10 +46,13 @@ public:
     /// Coefficients per distribution: (L + 1)^2.
     size_t size() const { return mHarmonics->size(); }
     /// K, symmetric, size()^2 values.
-    const std::vector<double>& kernel() const { return mWide; }
+    const std::vector<double>& kernel() const { return mKernel.wide(); }
     /// @brief out = K in: @a in and @a out hold @a width columns (channels) of size() values.
     /// S: float or double.
-    template<typename S> void apply(const S* in, S* out, int width) const;
+    template<typename S> void apply(const S* in, S* out, int width) const
+    {
+        mKernel.apply(in, out, width);
+    }
 
     /// @brief The truncated pi lobe(wi, wo): sum_ab Y_a(wo) K_ab Y_b(wi) (local frame).
     double value(const openvdb::math::Vec3d& wi, const openvdb::math::Vec3d& wo) const;
@@ -57,8 +61,7 @@ public:
 private:
     const SphericalHarmonics* mHarmonics;
     Brdf mBrdf;
-    std::vector<float> mNarrow;
-    std::vector<double> mWide;
+    SymmetricKernel mKernel;
     double mSeconds = 0.0;
 };
 
