@@ -24,16 +24,6 @@ launched()
 
 } // namespace
 
-bool
-Distribution::available()
-{
-#ifdef VDBRAD_WITH_MPI
-    return true;
-#else
-    return false;
-#endif
-}
-
 Distribution&
 Distribution::world()
 {
@@ -112,19 +102,6 @@ Distribution::combine(float* values, size_t count) const
     allSum(values, count, MPI_FLOAT, mBytes, mSeconds);
 #else
     (void)values;
-#endif
-}
-
-bool
-Distribution::any(bool flag) const
-{
-    if (mRanks == 1) return flag;
-#ifdef VDBRAD_WITH_MPI
-    int in = flag ? 1 : 0, out = 0;
-    MPI_Allreduce(&in, &out, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-    return out != 0;
-#else
-    return flag;
 #endif
 }
 

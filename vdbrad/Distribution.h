@@ -29,8 +29,6 @@ public:
     /// process was started by mpirun (Open MPI, MPICH or PMIx environment), else one process.
     /// Call it first from the main thread, before any other thread runs.
     static Distribution& world();
-    /// Whether this build can distribute at all (compiled with MPI).
-    static bool available();
 
     int rank() const { return mRank; }
     int ranks() const { return mRanks; }
@@ -55,8 +53,6 @@ public:
     /// @brief Whether this rank computes block @a b of a per-voxel loop that the ranks share
     /// out in blocks (dealt round-robin, so that each gets every part of the scene).
     bool ownsBlock(size_t b) const { return int(b % size_t(mRanks)) == mRank; }
-    /// Whether @a flag is true on any rank (every rank calls it).
-    bool any(bool flag) const;
     /// The sum of @a value over the ranks.
     double sum(double value) const;
 
