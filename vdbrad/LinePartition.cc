@@ -2,6 +2,9 @@
 
 #include "vdbrad/VectorClones.h"
 
+#include <algorithm>
+#include <limits>
+
 namespace vdbrad {
 
 namespace {
@@ -50,7 +53,7 @@ LinePartition::BoxKeys::slots(const openvdb::math::Coord* xyz, size_t n, int64_t
     constexpr int64_t kLimit = int64_t(1) << 31;
     // Every partial sum of index32 stays within +-bound, and the numerator within [0, top].
     // last: the largest index - first over the box, so that the caller's slots can be checked.
-    auto narrow = [&](const Form& f, int64_t first, Form32& g, int64_t& last) {
+    auto narrow = [&](const Form& f, int64_t first, Form32& g) {
         int64_t bound = 0, top = 0;
         int64_t base = -f.offset + f.shift;
         for (int k = 0; k < 3; ++k) {
@@ -67,7 +70,6 @@ LinePartition::BoxKeys::slots(const openvdb::math::Coord* xyz, size_t n, int64_t
             || std::abs(f.shift) >= kLimit) {
             return false;
         }
-        last = top / d - f.shiftQuotient - first;
         g.a = int32_t(f.twiceForm[0]);
         g.b = int32_t(f.twiceForm[1]);
         g.c = int32_t(f.twiceForm[2]);
@@ -80,9 +82,17 @@ LinePartition::BoxKeys::slots(const openvdb::math::Coord* xyz, size_t n, int64_t
         return true;
     };
     Form32 fi, fj;
-    int64_t iLast = 0, jLast = 0;
-    if (!narrow(mI, i0, fi, iLast) || !narrow(mJ, j0, fj, jLast)) return false;
-    // Every slot must fit 32 bits (a box much wider than its voxels are many is refused).
+    if (!narrow(mI, i0, fi) || !narrow(mJ, j0, fj)) return false;
+    // Every slot must fit 32 bits (a box much wider than its voxels are many is refused). The
+    // keys are monotone in the forms, so the box's extreme keys are at its corners: exact,
+    // where a bound from the numerators was one too high for a third of the directions.
+    int64_t iLast = std::numeric_limits<int64_t>::min(), jLast = iLast;
+    for (int c = 0; c < 8; ++c) {
+        const openvdb::math::Coord corner(c & 1 ? mBox.max().x() : lo.x(),
+            c & 2 ? mBox.max().y() : lo.y(), c & 4 ? mBox.max().z() : lo.z());
+        iLast = std::max(iLast, index(mI, corner) - i0);
+        jLast = std::max(jLast, index(mJ, corner) - j0);
+    }
     if (iLast < 0 || jLast < 0 || jLast >= nj || (iLast + 1) * nj > int64_t(UINT32_MAX)) {
         return false;
     }
