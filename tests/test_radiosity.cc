@@ -470,7 +470,11 @@ TEST_F(RadiosityTest, VisibilityCacheGivesTheSweepsBitsInEverySolverMode)
         EXPECT_GE(perEntry, 1.0);
         EXPECT_LT(perEntry, 2.0);
         std::cout << c.scene << ": " << perEntry << " bytes per voxel.direction kept\n";
+        // A third of that: short of every direction, so reports are kept in nibbles.
         const std::vector<float> some = result(bytes / 3, 1, kept, bytes);
+        const double perNibbleEntry = double(bytes) / double(kept * scene.size());
+        EXPECT_LT(perNibbleEntry, 0.85 * perEntry);   // 0.67 (Cornell), 0.83 (a small sphere)
+        std::cout << c.scene << ": " << perNibbleEntry << " in nibbles\n";
         EXPECT_GT(kept, 0u);
         EXPECT_LT(kept, dirs);
         ASSERT_EQ(all.size(), swept.size());

@@ -287,11 +287,17 @@ struct RadiositySolver::Engine
         size_t count = 0;
         auto flush = [&] {
             if (count == 0) return;
-            std::array<VisibilityCache::Reader, kReplayed> readers;
-            for (size_t j = 0; j < count; ++j) {
-                readers[j] = VisibilityCache::Reader(*impl.cache, queued[j]);
+            auto replayAs = [&](auto reader) {
+                using ReaderT = decltype(reader);
+                std::array<ReaderT, kReplayed> readers;
+                for (size_t j = 0; j < count; ++j) readers[j] = ReaderT(*impl.cache, queued[j]);
+                replayed<Hits>(s, *pattern.sweep, queued.data(), readers.data(), count, Bp, G, H);
+            };
+            if (impl.cache->code() == VisibilityCache::Code::Bytes) {
+                replayAs(VisibilityCache::ByteReader());
+            } else {
+                replayAs(VisibilityCache::Reader());
             }
-            replayed<Hits>(s, *pattern.sweep, queued.data(), readers.data(), count, Bp, G, H);
             progress.finished(count);
             count = 0;
         };
@@ -874,7 +880,7 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     const bool cache = options.visibilityCache > 0 && options.maxIterations > 1
         && options.visibility == Visibility::Sweep;
     // Per thread, a report's sweep workspace (4-byte payload), positions and code.
-    if (cache) perVoxel += t * (4 + 4 + 12 + 4 + VisibilityCache::worstBytes(1));
+    if (cache) perVoxel += t * (4 + 4 + 12 + 4 + VisibilityCache::kWorstBytesPerVoxel);
     if (options.update == UpdateScheme::Progressive) perVoxel += c;
     // Exact direct light: the patch of each voxel, D, rho D and E + R in float.
     if (options.direct != DirectMode::Sweep && scene.hasEmission()) {
@@ -938,7 +944,10 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
         size_t kept = options.visibilityCache;
         if (options.directions >= 1 && size_t(options.directions) <= DirectionSet::maxCount()) {
             const size_t dirs = DirectionSet::fromCount(options.directions).size();
-            kept = std::min(kept, dirs * VisibilityCache::typicalBytes(n));
+            // The code the cache will choose (VisibilityCache's constructor).
+            const size_t inBytes = VisibilityCache::typicalBytes(n, VisibilityCache::Code::Bytes);
+            kept = std::min(kept, dirs * (kept / dirs >= inBytes ? inBytes
+                : VisibilityCache::typicalBytes(n, VisibilityCache::Code::Nibbles)));
         }
         bytes = kept > SIZE_MAX - bytes ? SIZE_MAX : bytes + kept;   // a budget may be "all"
     }

@@ -97,10 +97,10 @@ struct RadiosityOptions
     /// Float or double state (Auto: double only for albedos above 0.999).
     Precision precision = Precision::Auto;
     /// Bytes the solver may keep to remember what each voxel sees along each direction
-    /// (VisibilityCache.h, ~1-2 bytes per voxel and direction): a kept direction is swept
-    /// once, and later iterations gather along it instead of sweeping it (faster: BENCHMARKS.md,
-    /// "Visibility cache"; the same results, bit for bit). Directions are kept while the
-    /// budget lasts. 0, or a single iteration: every iteration sweeps every direction.
+    /// (VisibilityCache.h, ~1.2 bytes per voxel and direction, ~0.8 where the budget is short):
+    /// a kept direction is swept once, and later iterations gather along it instead of
+    /// sweeping it (faster: BENCHMARKS.md, "Visibility cache"; the same results, bit for bit).
+    /// Directions are kept while the budget lasts. 0, or a single iteration: every iteration sweeps every direction.
     size_t visibilityCache = 0;
     /// Direct light from the emitters: integrated exactly (DirectLight.h; the sweeps then carry
     /// B - E, the reflected light, and the output adds E back), sent through the sweeps like
