@@ -211,8 +211,9 @@ commands()
                     .oneOf({toString(Precision::Auto), toString(Precision::Float),
                         toString(Precision::Double)}),
                 {"visibility-cache", OptionType::String, "auto", "2G",
-                    "memory for remembering what each voxel sees along each direction (~1.3 "
-                    "bytes per voxel and direction), so that iterations after the first replay "
+                    "memory for remembering what each voxel sees along each direction (~1.2 "
+                    "bytes per voxel and direction, ~0.8 where it is short of all of them), so "
+                    "that iterations after the first replay "
                     "it instead of sweeping (3-4x faster, same result): a size (K, M, G, T), 0 "
                     "for none, or auto: half of what --max-memory leaves"},
                 OptionSpec{"direct", OptionType::String, "auto", "exact",

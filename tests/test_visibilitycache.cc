@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <map>
 #include <random>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -298,6 +299,32 @@ TEST(VisibilityCache, KeepsReportsOnlyWhileTheBudgetLasts)
     EXPECT_EQ(cache.bytes(), a + b + darkBytes);
     EXPECT_EQ(replayed(cache, 1), expected(reports[1]));
     EXPECT_TRUE(replayed(cache, 3).empty());
+}
+
+TEST(VisibilityCache, PoolsKeepTheirShareOfTheBudget)
+{
+    // Two pools of two directions each get half the budget: the first pool's second big report
+    // no longer takes what the second pool's big report needs; a direction in no pool (another
+    // rank's) is never kept.
+    std::mt19937 rng(5);
+    const size_t n = 3000;
+    const std::vector<uint32_t> big = randomReport(n, rng, 1000), small(n, kNone);
+    const size_t B = codeBytes(big), S = codeBytes(small);
+    ASSERT_GT(B, 2 * S);
+    auto kept = [&](bool pooled) {
+        VisibilityCache cache(5, n, 2 * (B + S), Code::Nibbles);
+        if (pooled) cache.pools({0, 0, 1, 1, VisibilityCache::kNoPool});
+        std::vector<uint8_t> scratch;
+        std::string out;
+        for (size_t k = 0; k < 4; ++k) {
+            out += cache.offer(k, (k == 2 ? small : big).data(), scratch) ? '1' : '0';
+        }
+        out += cache.offer(4, small.data(), scratch) ? '1' : '0';
+        EXPECT_LE(cache.bytes(), 2 * (B + S));
+        return out;
+    };
+    EXPECT_EQ(kept(false), "11101");
+    EXPECT_EQ(kept(true), "10110");
 }
 
 TEST(VisibilityCache, ThreadsOfferingAtOnceNeverExceedTheBudget)

@@ -665,6 +665,17 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     layout.depth = options.occlusionDepth;
     layout.regions = regions;
     impl.schedule.reset(new SweepSchedule(scene.voxels(), std::move(directions), layout));
+    if (impl.cache) {
+        // Each accumulator group this rank sweeps keeps its share of the budget
+        // (VisibilityCache::pools).
+        const Distribution& ranks = Distribution::world();
+        std::vector<uint32_t> groupOf(dirs, VisibilityCache::kNoPool);
+        for (int g = 0; g < kGroups; ++g) {
+            if (!ranks.owns(g)) continue;
+            impl.schedule->forDirections(g, [&](size_t k) { groupOf[k] = uint32_t(g); });
+        }
+        impl.cache->pools(groupOf);
+    }
     if (impl.glossy) {
         const size_t P = impl.glossy->points();
         impl.glossySlotToward.resize(2 * dirs);

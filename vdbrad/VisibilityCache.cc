@@ -15,9 +15,40 @@ VisibilityCache::VisibilityCache(size_t directions, size_t voxels, size_t budget
     : mVoxels(voxels)
     , mBudget(budget)
     , mCode(forced)
-    , mLeft(budget)
+    , mLeft(new std::atomic<size_t>[1])
     , mData(directions)
 {
+    mLeft[0].store(budget);
+}
+
+void
+VisibilityCache::pools(const std::vector<uint32_t>& poolOf)
+{
+    if (poolOf.size() != mData.size()) {
+        OPENVDB_THROW(openvdb::ValueError, "VisibilityCache::pools needs one pool per direction");
+    }
+    size_t count = 0, pooled = 0;
+    for (uint32_t p : poolOf) {
+        if (p != kNoPool) count = std::max(count, size_t(p) + 1);
+    }
+    std::vector<size_t> directions(count, 0);
+    for (uint32_t p : poolOf) {
+        if (p != kNoPool) { ++directions[p]; ++pooled; }
+    }
+    // Directions in no pool draw on an empty last one.
+    mPoolOf = poolOf;
+    for (uint32_t& p : mPoolOf) {
+        if (p == kNoPool) p = uint32_t(count);
+    }
+    mPools = count + 1;
+    mLeft.reset(new std::atomic<size_t>[mPools]);
+    // Each pool its directions' share, rounded down (the budget is never exceeded).
+    const long double perDirection = pooled == 0 ? 0.0L
+        : static_cast<long double>(mBudget) / static_cast<long double>(pooled);
+    for (size_t p = 0; p < count; ++p) {
+        mLeft[p].store(size_t(perDirection * static_cast<long double>(directions[p])));
+    }
+    mLeft[count].store(0);
 }
 
 std::array<int32_t, VisibilityCache::kTableSteps>
@@ -138,12 +169,14 @@ VisibilityCache::offer(size_t k, const uint32_t* seen, std::vector<uint8_t>& scr
                                              : encodeNibbles(seen, scratch.data());
     // Whole words: the bytes held, as the budget counts them.
     const size_t words = (used + 3) / 4, size = words * 4;
-    size_t left = mLeft.load();
+    std::atomic<size_t>& pool = mLeft[mPoolOf.empty() ? 0 : mPoolOf[k]];
+    size_t left = pool.load();
     do {
         if (left < size) return false;
-    } while (!mLeft.compare_exchange_weak(left, left - size));
+    } while (!pool.compare_exchange_weak(left, left - size));
     mData[k].reset(new uint32_t[words]);
     std::memcpy(mData[k].get(), scratch.data(), size);
+    mHeld += size;
     ++mKept;
     return true;
 }
