@@ -51,7 +51,7 @@ const OptionSpec kResume{"resume", OptionType::String, "", "state.ckpt",
     "is bit-identical to an uninterrupted run"};
 const OptionSpec kMaxMemory{"max-memory", OptionType::String, "3/4 of RAM", "8G",
     "refuse a solve whose estimated peak memory exceeds this (bytes, or with K, M, G, T: "
-    "binary units)"};
+    "binary units; per process: under mpirun the default is shared by the ranks on a machine)"};
 const OptionSpec kThreads = OptionSpec{"threads", OptionType::Int, "0", "2",
     "worker threads (0: all cores); the result does not depend on it"}.atLeast(0);
 

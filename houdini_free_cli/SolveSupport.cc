@@ -76,8 +76,12 @@ double
 memoryLimit(const Arguments& a)
 {
     if (!a.has("max-memory")) {
+        // Ranks started on one machine share its memory (each would otherwise plan for 3/4
+        // of it, the visibility cache's auto budget included, and together run out).
         const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGE_SIZE);
-        return pages > 0 && size > 0 ? 0.75 * double(pages) * double(size) : 1e300;
+        return pages > 0 && size > 0 ? 0.75 * double(pages) * double(size)
+                / double(Distribution::world().localRanks())
+            : 1e300;
     }
     return parseBytes("max-memory", a.getString("max-memory"), false);
 }

@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -14,6 +16,7 @@
 #include <sstream>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 using namespace vdbrad;
 
@@ -450,6 +453,30 @@ TEST_F(CliTest, DistributedSolvesGiveTheSerialBits)
     ASSERT_EQ(resumed.status, 0) << resumed.err;
     EXPECT_TRUE(valueBits(path("resumed.vdb"), "radiosity") == valueBits(path("full.vdb"),
         "radiosity"));
+    // Ranks on one machine share its memory: each one's default limit (and so the cache's
+    // auto budget) is 3/4 of it divided by their number, as rank 0's memory line says.
+    auto limitOf = [&](const std::string& err) {
+        const size_t at = err.find("; limit ");
+        EXPECT_NE(at, std::string::npos) << err;
+        if (at == std::string::npos) return 0.0;
+        std::istringstream in(err.substr(at + 8));
+        double value = 0.0;
+        std::string unit;
+        in >> value >> unit;
+        const std::vector<std::string> units = {"B", "KiB", "MiB", "GiB", "TiB"};
+        const size_t u = size_t(std::find(units.begin(), units.end(), unit.substr(0, 3))
+            - units.begin());
+        EXPECT_LT(u, units.size()) << err;
+        return value * std::pow(1024.0, double(u));
+    };
+    const std::string small = " solve c.vdb m{}.vdb --directions 60 --iterations 2";
+    const Result alone = sh("vdbrad" + named(small, 1));
+    const Result shared = sh(mpirun + "2" + tool + named(small, 2));
+    ASSERT_EQ(alone.status, 0) << alone.err;
+    ASSERT_EQ(shared.status, 0) << shared.err;
+    const double ram = double(::sysconf(_SC_PHYS_PAGES)) * double(::sysconf(_SC_PAGE_SIZE));
+    EXPECT_NEAR(limitOf(alone.err) / (0.75 * ram), 1.0, 0.01) << alone.err;
+    EXPECT_NEAR(limitOf(shared.err) / (0.375 * ram), 1.0, 0.01) << shared.err;
     // Other commands run as one process.
     const Result render = sh(mpirun + "2" + tool + "render s1.vdb r.exr");
     EXPECT_EQ(render.status, 2);

@@ -39,6 +39,10 @@ Distribution::world()
         d.mInitialised = true;
         MPI_Comm_rank(MPI_COMM_WORLD, &d.mRank);
         MPI_Comm_size(MPI_COMM_WORLD, &d.mRanks);
+        MPI_Comm local;
+        MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, d.mRank, MPI_INFO_NULL, &local);
+        MPI_Comm_size(local, &d.mLocalRanks);
+        MPI_Comm_free(&local);
     }
 #endif
     return d;

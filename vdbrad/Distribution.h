@@ -33,6 +33,8 @@ public:
     int rank() const { return mRank; }
     int ranks() const { return mRanks; }
     bool distributed() const { return mRanks > 1; }
+    /// The ranks on this machine (sharing its memory), this one included: 1 alone.
+    int localRanks() const { return mLocalRanks; }
     /// The rank that sweeps accumulator group @a g.
     int ownerOf(int g) const { return g % mRanks; }
     bool owns(int g) const { return ownerOf(g) == mRank; }
@@ -69,7 +71,7 @@ public:
 
 private:
     Distribution() = default;
-    int mRank = 0, mRanks = 1;
+    int mRank = 0, mRanks = 1, mLocalRanks = 1;
     bool mInitialised = false;
     mutable size_t mBytes = 0;
     mutable double mSeconds = 0.0;
