@@ -955,10 +955,8 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
         size_t kept = options.visibilityCache;
         if (options.directions >= 1 && size_t(options.directions) <= DirectionSet::maxCount()) {
             const size_t dirs = DirectionSet::fromCount(options.directions).size();
-            // The code the cache will choose (VisibilityCache's constructor).
-            const size_t inBytes = VisibilityCache::typicalBytes(n, VisibilityCache::Code::Bytes);
-            kept = std::min(kept, dirs * (kept / dirs >= inBytes ? inBytes
-                : VisibilityCache::typicalBytes(n, VisibilityCache::Code::Nibbles)));
+            kept = std::min(kept, dirs * VisibilityCache::typicalBytes(n,
+                VisibilityCache::codeFor(dirs, n, kept)));
         }
         bytes = kept > SIZE_MAX - bytes ? SIZE_MAX : bytes + kept;   // a budget may be "all"
     }

@@ -5,9 +5,7 @@
 namespace vdbrad {
 
 VisibilityCache::VisibilityCache(size_t directions, size_t voxels, size_t budget)
-    : VisibilityCache(directions, voxels, budget,
-          budget / std::max<size_t>(directions, 1) >= typicalBytes(voxels, Code::Bytes)
-              ? Code::Bytes : Code::Nibbles)
+    : VisibilityCache(directions, voxels, budget, codeFor(directions, voxels, budget))
 {
 }
 

@@ -16,8 +16,8 @@
 //    step or the absolute position (2, 4 or 8 more nibbles); ~0.8 bytes per voxel and
 //    direction, so that the budget keeps ~1.5x as many directions, replayed ~1.4x slower.
 // Sizes and speeds: BENCHMARKS.md, "Visibility cache". Directions are kept first come, first
-// served while the budget lasts; which ones are kept, and the code, change the speed, never
-// the result.
+// served while the budget (or their pool's share of it, pools()) lasts; which ones are kept,
+// and the code, change the speed, never the result.
 #pragma once
 
 #include "vdbrad/LineSweep.h"
@@ -55,6 +55,12 @@ public:
     /// typicalBytes(voxels, Code::Bytes), else in nibbles (or in @a forced, for tests).
     VisibilityCache(size_t directions, size_t voxels, size_t budget);
     VisibilityCache(size_t directions, size_t voxels, size_t budget, Code forced);
+    /// The code the first constructor chooses (memory estimates ask it too).
+    static Code codeFor(size_t directions, size_t voxels, size_t budget)
+    {
+        return budget / std::max<size_t>(directions, 1) >= typicalBytes(voxels, Code::Bytes)
+            ? Code::Bytes : Code::Nibbles;
+    }
 
     /// @brief Keep direction @a k's report @a seen (one entry per voxel: the position it sees,
     /// or kNone) if it fits what is left of the budget; returns whether it was kept.
