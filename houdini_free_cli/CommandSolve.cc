@@ -5,12 +5,14 @@
 #include "SolveSupport.h"
 #include "ToolSupport.h"
 
+#include "vdbrad/Distribution.h"
 #include "vdbrad/MonteCarloSolver.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>
 #include <iostream>
+#include <utility>
 
 namespace vdbrad {
 namespace cli {
@@ -93,17 +95,38 @@ runSolve(const Arguments& a)
     if (method == "montecarlo" && (a.has("checkpoint") || a.has("resume"))) {
         throw UsageError("--checkpoint and --resume do not apply to --method montecarlo");
     }
+    o.spread = a.getString("distribute") == "slabs" ? Spread::Slabs : Spread::Directions;
+    const bool slabs = o.spread == Spread::Slabs && Distribution::world().distributed();
+    if (o.spread == Spread::Slabs) {
+        // What the slab passes do not carry (RadiosityOptions::spread).
+        if (method != "sweep") throw UsageError("--distribute slabs needs --method sweep");
+        if (o.lines != LineType::Naive) throw UsageError("--distribute slabs needs naive lines");
+        if (o.accelerate != Acceleration::None) {
+            throw UsageError("--distribute slabs does not take --accelerate");
+        }
+        if (a.has("checkpoint") || a.has("resume")) {
+            throw UsageError("--distribute slabs keeps no checkpoints (--checkpoint, --resume)");
+        }
+        if (a.has("visibility-cache") && cache != 0.0) {
+            throw UsageError("--distribute slabs uses no --visibility-cache (a replay reads "
+                             "other ranks' voxels)");
+        }
+    }
     SolveSession session(a, in, out);
     const VdbFile& file = session.file();
     const std::string& label = session.label();
     ProgressInterrupter& progress = session.progress();
-    const Scene scene = forFile(label, [&] {
+    Scene scene = forFile(label, [&] {
         return buildScene(file.grids, sceneOpts, &progress);
     });
     if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
     if (scene.raisedRoughness() > 0) {
         warn(label, std::to_string(scene.raisedRoughness()) + " glossy voxels have a roughness "
             "below 0.1, raised to 0.1 (control points resolve no sharper lobe)");
+    }
+    if (scene.isGlossy() && o.spread == Spread::Slabs) {
+        throw UserError(label + ": glossy surfaces (a `specular` grid) are not solved with "
+            "--distribute slabs");
     }
     if (scene.isGlossy() && method != "sweep") {
         throw UserError(label + ": glossy surfaces (a `specular` grid) are solved by the line "
@@ -120,6 +143,7 @@ runSolve(const Arguments& a)
         warn(label, "the fog ('density') is not part of this solve: `vdbrad solve-cloud` solves "
             "the surfaces and the fog together");
     }
+    session.releaseInput();
     if (method == "montecarlo") {
         mc.gather = gather;
         session.finish(solveMonteCarlo(scene, mc, &progress, session.control("")), out,
@@ -128,12 +152,13 @@ runSolve(const Arguments& a)
     }
     const double held = residentBytes(double(fileBytes(file) + scene.memUsage()));
     // Auto: half of what the limit leaves once the solve has what it needs without a cache.
-    o.visibilityCache = cache >= 0.0 ? size_t(std::min(cache, 1e18))
+    o.visibilityCache = slabs ? 0 : cache >= 0.0 ? size_t(std::min(cache, 1e18))
         : RadiositySolver::visibilityCacheFor(scene, o, workerThreads(), memoryLimit(a) - held);
     const std::string memory = checkMemory(a, label, held,
         double(RadiositySolver::memoryEstimate(scene, o, workerThreads())));
     openvdb::GridBase::Ptr specular;
-    openvdb::GridBase::Ptr radiosity = solveRadiosity(scene, o, &progress,
+    // Given up: with slabs, the ranks other than 0 free it once their slab is set up.
+    openvdb::GridBase::Ptr radiosity = solveRadiosity(std::move(scene), o, &progress,
         session.control(memory), &specular);
     openvdb::GridPtrVec results{radiosity};
     if (specular) results.push_back(specular);

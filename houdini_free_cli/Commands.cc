@@ -216,6 +216,13 @@ commands()
                     "that iterations after the first replay "
                     "it instead of sweeping (3-4x faster, same result): a size (K, M, G, T), 0 "
                     "for none, or auto: half of what --max-memory leaves"},
+                OptionSpec{"distribute", OptionType::String, "directions", "slabs",
+                    "under mpirun: directions (every rank holds the scene and sweeps its share "
+                    "of the directions) or slabs (every rank holds one slab of the scene along x "
+                    "and sweeps every direction over it, passing line fronts to its neighbours: "
+                    "memory per rank falls with the ranks; one thread per rank, naive lines, "
+                    "diffuse scenes, no cache, checkpoints or --accelerate); the same result"}
+                    .oneOf({"directions", "slabs"}),
                 OptionSpec{"direct", OptionType::String, "auto", "exact",
                     "light straight from the emitters: exact (integrated over the emitters' "
                     "surfaces with shadow rays: no stripes; the sweeps carry the reflected light), "

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <malloc.h>
 #include <unistd.h>
 
 #include <fstream>
@@ -159,6 +160,17 @@ SolveSession::control(const std::string& preface)
         mOutcome.residual = residual;
     };
     return c;
+}
+
+void
+SolveSession::releaseInput()
+{
+    if (Distribution::world().rank() == 0) return;
+    openvdb::GridPtrVec().swap(mFile.grids);
+#ifdef __GLIBC__
+    // Leaf nodes are small blocks: glibc keeps them in the heap unless asked to give it back.
+    ::malloc_trim(0);
+#endif
 }
 
 void

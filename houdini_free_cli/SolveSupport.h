@@ -83,6 +83,9 @@ public:
     void finish(const openvdb::GridPtrVec& results, const std::string& out, int maxIterations);
 
     const VdbFile& file() const { return mFile; }
+    /// @brief Under mpirun, on the ranks that write nothing (all but 0): drop the input's
+    /// grids, once what the solve needs of them is built (as much memory as the scene again).
+    void releaseInput();
     const std::string& label() const { return mLabel; }
     bool quiet() const { return mQuiet; }
     ProgressInterrupter& progress() { return mProgress; }

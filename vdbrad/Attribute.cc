@@ -34,6 +34,20 @@ Attribute::isZero() const
 }
 
 Attribute
+Attribute::subset(const std::vector<uint32_t>& at) const
+{
+    Attribute a = *this;
+    if (mStorage == Storage::Grey) {
+        a.mGrey.resize(at.size());
+        for (size_t k = 0; k < at.size(); ++k) a.mGrey[k] = mGrey[at[k]];
+    } else if (mStorage == Storage::Rgb) {
+        a.mRgb.resize(at.size());
+        for (size_t k = 0; k < at.size(); ++k) a.mRgb[k] = mRgb[at[k]];
+    }
+    return a;
+}
+
+Attribute
 Attribute::fromGrey(std::vector<float> values)
 {
     Attribute a;

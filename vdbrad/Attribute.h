@@ -79,6 +79,9 @@ public:
         float hi = std::numeric_limits<float>::max());
 
     /// Build from explicit per-voxel arrays (no validation).
+    /// The values of the voxels @a at (indices into this one), in that order, stored the same
+    /// way (a uniform value stays uniform).
+    Attribute subset(const std::vector<uint32_t>& at) const;
     static Attribute fromGrey(std::vector<float> values);
     static Attribute fromRgb(std::vector<openvdb::Vec3f> values);
 

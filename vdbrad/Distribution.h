@@ -7,9 +7,10 @@
 // owner, once per half-iteration (the in-place update's phases hold groups 0-3 and 4-7, so two
 // ranks get two groups of each). Every rank then holds every group and sums them in group order,
 // exactly as one process does: the result is the serial tool's, bit for bit, for any number of
-// ranks and threads. Every rank keeps the whole scene and the iterate (the data distribution of
-// §6.2.2 is not done); what moves per half-iteration is (K - 1) / K of four groups' per-voxel
-// sums per rank. Per-voxel work that depends on the voxel alone (the exact direct light) is
+// ranks and threads. Every rank keeps the whole scene and the iterate; what moves per
+// half-iteration is (K - 1) / K of four groups' per-voxel sums per rank. (The data distribution
+// of §6.2.2, each rank with one slab of the scene, is SlabDistribution.h; it passes line fronts
+// from rank to rank with send() and receive().) Per-voxel work that depends on the voxel alone (the exact direct light) is
 // shared out in blocks (ownsBlock) and combined by a sum in which one rank's value meets the
 // others' zeros (combine): exact too.
 //
@@ -18,6 +19,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 namespace vdbrad {
@@ -58,10 +60,27 @@ public:
     /// The sum of @a value over the ranks.
     double sum(double value) const;
 
+    /// The largest @a value over the ranks.
+    double maximum(double value) const;
+
+    /// @brief Point to point, for passing data along a chain of ranks (SlabDistribution.h):
+    /// send @a bytes to rank @a to with @a tag without waiting (kept until delivered);
+    /// receive() takes the next message from @a from with @a tag into @a bytes if one has
+    /// arrived (false if none has); finishSends() waits until every sent message is
+    /// delivered. Messages between two ranks with one tag arrive in the order sent.
+    /// @throw openvdb::ValueError for a message of 2 GiB or more
+    void send(int to, int tag, std::vector<char>&& bytes) const;
+    bool receive(int from, int tag, std::vector<char>& bytes) const;
+    void finishSends() const;
+    /// @brief Every rank's @a bytes, on rank @a root (one vector per rank; empty elsewhere).
+    std::vector<std::vector<char>> gather(const void* data, size_t bytes, int root) const;
+
     /// What this rank's exchanges have moved (bytes received or sent, as a broadcast's root)
     /// and the seconds it spent in them (waiting for slower ranks included).
     size_t exchangedBytes() const { return mBytes; }
     double exchangeSeconds() const { return mSeconds; }
+    /// Count @a seconds this rank spent waiting for another's data in exchangeSeconds().
+    void waited(double seconds) const { mSeconds += seconds; }
 
     /// @brief End the job now, all ranks, with exit status @a code (MPI_Abort; std::exit
     /// alone).
@@ -69,8 +88,12 @@ public:
     /// MPI_Finalize, once, if MPI was initialised (at the end of main()).
     void finalize();
 
+    ~Distribution();
+
 private:
     Distribution() = default;
+    struct Sends;   // messages on their way (MPI requests and their buffers)
+    mutable std::unique_ptr<Sends> mSends;
     int mRank = 0, mRanks = 1, mLocalRanks = 1;
     bool mInitialised = false;
     mutable size_t mBytes = 0;

@@ -41,6 +41,7 @@
 #include <openvdb/openvdb.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -77,6 +78,25 @@ public:
         const openvdb::CoordBBox box = index.bbox();
         mMin = box.min();
         mMax = box.max();
+        mLowX = mMin.x();
+        mHighX = mMax.x();
+        mFrameVoxels = seq.size();
+    }
+
+    /// The box whose lines are keyed and numbered (the partition is centred on it) and the
+    /// voxel count that decides whether they are numbered densely: by default the voxels' own
+    /// bounding box and count; a whole scene's where this sweep holds one slab of it
+    /// (SlabDistribution.h), so that every slab keys every line alike.
+    struct Frame
+    {
+        openvdb::CoordBBox box;
+        size_t voxels = 0;
+    };
+    void setFrame(const Frame& frame)
+    {
+        mMin = frame.box.min();
+        mMax = frame.box.max();
+        mFrameVoxels = frame.voxels;
     }
 
     size_t size() const { return mCoords.size(); }
@@ -111,6 +131,19 @@ public:
         std::vector<StateT> fronts;
         std::unordered_map<LineKey, uint32_t, LineKeyHash> ids;   // sparse scenes only
         std::vector<float> facing;       // sigma . n of each voxel, by position (sweep())
+        // How assignLines() numbered the lines: densely, slot = (i - i0) * nj + (j - j0), or
+        // on first sight (ids); and their count. Slab passes map keys to slots with these.
+        bool dense = true;
+        int64_t i0 = 0, j0 = 0, nj = 1;
+        size_t lines = 0;
+        int major = 0;                   // the partition's major axis
+        // Slab passes: the last voxels of lines that came from the previous slab, met before
+        // any voxel of this one (numbered from size() on), for the occlusion test.
+        std::vector<openvdb::Coord> ghostCoords;
+        std::vector<openvdb::Vec3f> ghostNormals;
+        std::vector<LineKey> keyOfSlot;  // sparse numbering: each slot's key
+        std::vector<uint32_t> crossed;   // the slots of a pass's incoming lines
+        std::vector<uint32_t> leaving;   // ... and of its leaving ones
     };
     template<typename PayloadT>
     using Workspace = Lanes<Front<PayloadT>>;
@@ -209,6 +242,163 @@ public:
     /// sweep() reports them (the same vector kernel, dotAll() in LineSweep.cc).
     void facing(const openvdb::Coord& sigma, uint32_t begin, uint32_t end, float* out) const;
 
+    /// @brief Number sigma's lines and compute every voxel's facing, once per direction before
+    /// its two slabPass()es. Naive lines only (a standard line's bubble may straddle two
+    /// slabs).
+    template<typename PayloadT>
+    void prepareSlab(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work) const
+    {
+        if (mLines != LineType::Naive) {
+            OPENVDB_THROW(openvdb::ValueError, "slab passes need naive lines");
+        }
+        facing(sigma, work.facing);
+        assignLines(sigma, reversed, work);
+        if (!work.dense) {
+            work.keyOfSlot.assign(work.lines, LineKey());
+            for (const auto& [key, slot] : work.ids) work.keyOfSlot[slot] = key;
+        }
+    }
+
+    /// @brief One of sweep()'s two passes over this sweep's voxels, a slab of a larger scene
+    /// whose frame (setFrame()) they share: along this sweep's order (@a ascending, positions
+    /// 0 to size() - 1) or against it. Lines start from what the pass over the neighbouring
+    /// slab before this one left, @a in (@a inBytes bytes; none for the first slab), instead of
+    /// empty; @a out receives every line that still carries light at the end. Chained over the
+    /// slabs in order (against it for !ascending), the passes report exactly what sweep()
+    /// reports over the whole scene (tests/test_radiosity.cc). prepareSlab() first.
+    ///
+    /// @a fronts: the lines' state during the pass, which may be shared by workspaces whose
+    /// passes do not overlap. It must come empty, or as a slabPass() left it: a pass reads
+    /// only the lines its voxels or @a in name, and leaves every line empty (open = 0, which a
+    /// step treats as no light at all), so that it never clears the whole frame's lines,
+    /// which outnumber a slab's voxels.
+    ///
+    /// What crosses, per line that carries light: the line (its dense slot, 4 bytes, which
+    /// every slab of one frame numbers alike, or its key where lines are numbered on first
+    /// sight), its region + 1 with the sender bit, and the payload; where the last voxel met
+    /// let the light pass, also that voxel's coordinate and normal, which the next voxel's
+    /// occlusion test reads (a "ghost", numbered from size() on in this pass), unless no voxel
+    /// past the boundary can see it (Beyond).
+    template<typename PayloadT, typename LoadT, typename VisitT>
+    void slabPass(const openvdb::Coord& sigma, bool reversed, bool ascending,
+        Workspace<PayloadT>& work, std::vector<Front<PayloadT>>& fronts, const char* in,
+        size_t inBytes, std::vector<char>& out, LoadT&& load, VisitT&& visit) const
+    {
+        static_assert(std::is_trivially_copyable_v<PayloadT>, "payloads travel as bytes");
+        const size_t n = mCoords.size();
+        // Along +sigma when the order's sense is sigma's.
+        const bool forward = ascending != reversed;
+        const float travel = forward ? 1.f : -1.f;
+        // Sparse numbering: lines an earlier pass brought through have slots past `lines`.
+        const size_t live = work.dense ? work.lines : work.keyOfSlot.size();
+        if (fronts.size() < live) fronts.resize(live);
+        work.ghostCoords.clear();
+        work.ghostNormals.clear();
+        const size_t lineBytes = work.dense ? sizeof(uint32_t) : sizeof(LineKey);
+        const size_t record = lineBytes + sizeof(uint32_t) + sizeof(PayloadT);
+        constexpr size_t kGhost = sizeof(uint32_t) + sizeof(openvdb::Coord)
+            + sizeof(openvdb::Vec3f);
+        auto slotOf = [&](const char* line) -> uint32_t {
+            if (work.dense) return read<uint32_t>(line);
+            // A line with no voxel here still passes through: it gets a slot of its own.
+            const LineKey key = read<LineKey>(line);
+            const auto [it, added] = work.ids.emplace(key, uint32_t(work.keyOfSlot.size()));
+            if (added) {
+                work.keyOfSlot.push_back(key);
+                if (fronts.size() < work.keyOfSlot.size()) fronts.resize(work.keyOfSlot.size());
+            }
+            return it->second;
+        };
+        std::vector<uint32_t>& crossed = work.crossed;
+        crossed.clear();
+        if (inBytes > 0) {
+            const uint64_t count = read<uint64_t>(in), ghosts = read<uint64_t>(in + 8);
+            const char* at = in + 16;
+            crossed.resize(count);
+            for (uint64_t e = 0; e < count; ++e, at += record) {
+                crossed[e] = slotOf(at);
+                Front<PayloadT>& f = fronts[crossed[e]];
+                f.open = read<uint32_t>(at + lineBytes);
+                f.last = f.open & kSender;
+                f.open &= ~kSender;
+                f.payload = read<PayloadT>(at + lineBytes + sizeof(uint32_t));
+            }
+            for (uint64_t e = 0; e < ghosts; ++e, at += kGhost) {
+                Front<PayloadT>& f = fronts[crossed[read<uint32_t>(at)]];
+                f.last = uint32_t(n + work.ghostCoords.size());
+                work.ghostCoords.push_back(read<openvdb::Coord>(at + sizeof(uint32_t)));
+                work.ghostNormals.push_back(
+                    read<openvdb::Vec3f>(at + sizeof(uint32_t) + sizeof(openvdb::Coord)));
+            }
+        }
+        auto run = [&](auto hasRegions) {
+            constexpr bool kRegions = decltype(hasRegions)::value;
+            for (size_t m = 0; m < n; ++m) {
+                const uint32_t x = uint32_t(ascending ? m : n - 1 - m);
+                step<kRegions, true>(x, fronts[work.slots[x]], work.facing[x] * travel, travel,
+                    load, visit, &work);
+            }
+        };
+        withRegions(run);
+        // What leaves: the lines that carry light (unless Beyond says nothing past the
+        // boundary sees it), then the ghosts of those whose last voxel let it pass. Only the
+        // lines this pass named can carry light; each is emptied once looked at.
+        std::vector<uint32_t>& leaving = work.leaving;
+        leaving.clear();
+        uint64_t ghosts = 0;
+        const Beyond beyond(sigma, work.major, travel,
+            ascending ? (mHighX & ~7) + 8 : (mLowX & ~7) - 1, mDepth);
+        auto look = [&](uint32_t slot) {
+            Front<PayloadT>& f = fronts[slot];
+            if (f.open == 0 || (f.open & kSender)) return;   // nothing travels, or listed
+            // With sigma.x = 0 a line keeps its x, so none leaves this slab.
+            bool leaves = sigma.x() != 0;
+            if (leaves && !(f.last & kSender)) {
+                const bool local = f.last < n;
+                leaves = !beyond.hidden(local ? mCoords[f.last] : work.ghostCoords[f.last - n],
+                    local ? mNormals[f.last] : work.ghostNormals[f.last - n]);
+                if (leaves) ++ghosts;
+            }
+            if (leaves) {
+                leaving.push_back(slot);
+                // Kept open until written (below), with a mark that it is listed.
+                f.open |= kSender;
+            } else {
+                f.open = 0;
+            }
+        };
+        for (size_t x = 0; x < n; ++x) look(work.slots[x]);
+        for (const uint32_t slot : crossed) look(slot);
+        const uint64_t count = leaving.size();
+        out.resize(count == 0 ? 0 : 16 + count * record + ghosts * kGhost);
+        if (count == 0) return;
+        char* at = out.data();
+        char* ghost = at + 16 + count * record;
+        write(at, count);
+        write(at + 8, ghosts);
+        at += 16;
+        for (uint32_t e = 0; e < count; ++e, at += record) {
+            const uint32_t slot = leaving[e];
+            Front<PayloadT>& f = fronts[slot];
+            if (work.dense) {
+                write(at, slot);
+            } else {
+                write(at, work.keyOfSlot[slot]);
+            }
+            write(at + lineBytes, uint32_t((f.open & ~kSender) | (f.last & kSender)));
+            write(at + lineBytes + sizeof(uint32_t), f.payload);
+            if (!(f.last & kSender)) {
+                write(ghost, e);
+                write(ghost + sizeof(uint32_t),
+                    f.last < n ? mCoords[f.last] : work.ghostCoords[f.last - n]);
+                write(ghost + sizeof(uint32_t) + sizeof(openvdb::Coord),
+                    f.last < n ? mNormals[f.last] : work.ghostNormals[f.last - n]);
+                ghost += kGhost;
+            }
+            f.open = 0;
+        }
+    }
+
     /// @brief The same report as sweep(), built the way the thesis does (§6.2.1.1): a stable
     /// counting sort of the voxels into explicit per-line lists, then each list walked in both
     /// senses. Kept to measure against the streaming sweep (BENCHMARKS.md), which needs no lists.
@@ -260,6 +450,59 @@ public:
 
 private:
     static constexpr uint32_t kSender = 0x80000000u;   // positions are < 2^31 (VoxelIndex)
+
+    /// Whether a line whose last voxel p let the light pass can still show p's light to a
+    /// voxel past a slab's boundary x = @a boundary (the first x a later slab may hold,
+    /// ascending; the last one, descending). On a naive line of sigma (major axis m) a later
+    /// voxel x lies at c_x - c_p = k t / |sigma_m| + e, k >= 0 the steps along m, t the travel
+    /// direction and |e_i| < 1 on the two other axes. So (c_x - c_p) . n_p, which the
+    /// occlusion test compares with -depth, is below k (t . n_p) / |sigma_m| + |n_i| + |n_j|,
+    /// and k is at least what reaching the boundary takes. Where that bound is <= -depth
+    /// (with a margin for float rounding), every voxel past the boundary is hidden from p:
+    /// the line then carries what an empty one does, and need not be sent. (Through a
+    /// one-voxel wall, light goes on past the wall's receivers: most of the lines leaving a
+    /// slab of a closed room; BENCHMARKS.md.)
+    struct Beyond
+    {
+        /// @param major  the partition's major axis (LinePartition::majorAxis(): with equal
+        ///               components, the one its forms are written for)
+        Beyond(const openvdb::Coord& sigma, int major, float travel, int32_t boundary,
+            float depth)
+            : boundary(boundary), m(major)
+        {
+            const double along = std::abs(double(sigma[m]));
+            for (int a = 0; a < 3; ++a) t[a] = double(travel) * sigma[a] / along;
+            // Steps along m per voxel of x, and the part of a voxel x may stray by.
+            perX = m == 0 || sigma.x() == 0 ? 1.0 : along / std::abs(double(sigma.x()));
+            stray = m == 0 ? 0.0 : 1.0;
+            limit = -double(depth) - 1e-3;
+        }
+        inline bool hidden(const openvdb::Coord& p, const openvdb::Vec3f& normal) const
+        {
+            const double tn = t[0] * normal[0] + t[1] * normal[1] + t[2] * normal[2];
+            if (!(tn < 0.0)) return false;
+            const double steps = (std::abs(double(boundary) - double(p.x())) - stray) * perX;
+            const double spread = double(std::abs(normal[0])) + std::abs(normal[1])
+                + std::abs(normal[2]) - std::abs(normal[m]);
+            return steps > 0.0 && steps * tn + spread <= limit - 1e-6 * steps;
+        }
+        int32_t boundary;
+        int m;
+        double t[3];                // the travel direction per step along m
+        double perX, stray, limit;
+    };
+
+    // Unaligned reads and writes of a slab message's fields.
+    template<typename T> static T read(const char* at)
+    {
+        T v;
+        std::memcpy(static_cast<void*>(&v), at, sizeof(T));
+        return v;
+    }
+    template<typename T> static void write(char* at, const T& v)
+    {
+        std::memcpy(at, static_cast<const void*>(&v), sizeof(T));
+    }
 
     template<typename T> struct IsFront : std::false_type {};
     template<typename P> struct IsFront<Front<P>> : std::true_type {};
@@ -325,7 +568,8 @@ private:
         size_t lines = 0;
         // Position of the k-th voxel along +sigma.
         auto along = [&](size_t k) { return uint32_t(reversed ? n - 1 - k : k); };
-        const bool isDense = dense <= 4.0 * double(n) + 65536.0 && dense < 4294967296.0;
+        const bool isDense = dense <= 4.0 * double(std::max(n, mFrameVoxels)) + 65536.0
+            && dense < 4294967296.0;
         const int64_t nj = j1 - j0 + 1;
         auto fill = [&](auto&& keyOf) {
             if (isDense) {
@@ -375,15 +619,23 @@ private:
         }
         work.bubblesByEarlier = work.bubblesByLater;
         std::sort(work.bubblesByEarlier.begin(), work.bubblesByEarlier.end());
+        work.dense = isDense;
+        work.major = partition.majorAxis();
+        work.i0 = i0;
+        work.j0 = j0;
+        work.nj = nj;
+        work.lines = lines;
         return lines;
     }
 
     /// Visit voxel x, which faces the light by @a dx = t . n_x, with the frontier @a front of
     /// its line, light travelling along t = travel * sigma. HasRegions: mRegions is not empty
-    /// (a template flag, so that the one-region case tests nothing per voxel).
-    template<bool HasRegions, typename PayloadT, typename LoadT, typename VisitT>
+    /// (a template flag, so that the one-region case tests nothing per voxel). Ghosts: `last`
+    /// may name a voxel of the previous slab (>= size(), in @a ghosts; slabPass()).
+    template<bool HasRegions, bool Ghosts = false, typename PayloadT, typename LoadT,
+        typename VisitT, typename LanesT = void>
     void step(uint32_t x, Front<PayloadT>& front, float dx, float travel, LoadT& load,
-        VisitT& visit) const
+        VisitT& visit, const LanesT* ghosts = nullptr) const
     {
         const uint32_t open = (HasRegions ? mRegions[x] : 0u) + 1u;
         if (dx > 0.f) {
@@ -397,9 +649,18 @@ private:
         if (sees && !(front.last & kSender)) {
             // The previous voxel let the light pass: x is hidden if it lies behind it.
             const uint32_t last = front.last;
-            if ((mCoords[x] - mCoords[last]).asVec3s().dot(mNormals[last]) <= -mDepth) {
-                sees = false;
+            bool hidden;
+            if constexpr (Ghosts) {
+                const size_t n = mCoords.size();
+                const openvdb::Coord& c = last < n ? mCoords[last] : ghosts->ghostCoords[last - n];
+                const openvdb::Vec3f& nl = last < n ? mNormals[last]
+                                                    : ghosts->ghostNormals[last - n];
+                hidden = (mCoords[x] - c).asVec3s().dot(nl) <= -mDepth;
+            } else {
+                (void)ghosts;
+                hidden = (mCoords[x] - mCoords[last]).asVec3s().dot(mNormals[last]) <= -mDepth;
             }
+            if (hidden) sees = false;
         }
         if (dx < 0.f) visit(x, sees ? &front.payload : nullptr, dx * travel);   // = sigma . n_x
         front.last = x;
@@ -413,6 +674,8 @@ private:
     LineType mLines;
     float mDepth;
     openvdb::Coord mMin, mMax;
+    size_t mFrameVoxels = 0;
+    int32_t mLowX = 0, mHighX = 0;   // the voxels' own x extent (a frame may be wider)
 };
 
 } // namespace vdbrad

@@ -9,6 +9,7 @@
 #include "vdbrad/LineSweep.h"
 #include "vdbrad/Precision.h"
 #include "vdbrad/RayCastVisibility.h"
+#include "vdbrad/SlabDistribution.h"
 #include "vdbrad/SweepSchedule.h"
 #include "vdbrad/TextFormat.h"
 #include "vdbrad/VisibilityCache.h"
@@ -23,9 +24,15 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <sstream>
 #include <tuple>
 #include <type_traits>
+
+#include <unistd.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 namespace vdbrad {
 
@@ -34,6 +41,20 @@ namespace vdbrad {
 // counted in memoryEstimate(). A furnace box of 10^7 surface voxels (res 1300) spans 4.5e6 blocks
 // and 1.6e5 leaves: 44 MiB, 0.8 s. Larger boxes keep their digitisation losses.
 constexpr uint64_t kEnclosureBlocks = uint64_t(1) << 29;
+
+// What a slab's solver takes from the whole scene: the frame its lines are keyed in, and what
+// only the whole scene can tell (air regions, direct light, the exact-direct and precision
+// choices, which a slab alone could make differently from its neighbours).
+struct RadiositySolver::SlabContext
+{
+    LineSweep::Frame frame;
+    Regions regions;               // the slab's voxels' regions
+    bool exact = false;
+    bool wide = false;
+    Emitters emitters;             // exact direct light: the whole scene's
+    DirectIrradiance direct;       // ... and the slab's voxels' irradiance
+    int slabs = 1;
+};
 
 namespace {
 using namespace detail;   // Precision.h: the state types
@@ -48,6 +69,10 @@ struct RadiositySolver::Impl
 {
     std::unique_ptr<SweepSchedule> schedule;
     std::unique_ptr<RayCastVisibility> rays;             // Visibility::RayCast only
+    // Spread::Slabs under mpirun (null otherwise): the whole scene's part, and the chain of
+    // ranks the line fronts go along.
+    std::shared_ptr<const SlabContext> slab;
+    std::unique_ptr<SlabPipeline> pipeline;
     // RadiosityOptions::visibilityCache (null: none): the kept reports, in each direction's
     // pattern order; per direction, whether its report was offered to it; and each thread's
     // scratch memory for making a report.
@@ -111,6 +136,11 @@ struct RadiositySolver::Impl
         std::vector<ValueT> spec;
         std::vector<std::vector<typename Traits<ValueT>::Acc>> incident;
         SweepSchedule::PerThread<LineSweep::Workspace<ValueT>> work;
+        // Slabs: each group's (its direction's two passes are apart in time), and one set of
+        // fronts for all (the passes run one at a time, and each leaves them empty: a set per
+        // group over the whole box's lines would be most of a rank's memory).
+        std::array<LineSweep::Workspace<ValueT>, SweepSchedule::kGroups> slabWork;
+        std::vector<LineSweep::Front<ValueT>> slabFronts;
     };
     // Only the one of the scene's kind and precision is used; in double, the float one of the
     // same kind holds B rounded to float after every change, for grey(), rgb() and grid().
@@ -346,9 +376,7 @@ struct RadiositySolver::Engine
             // x (a position in the pattern's order) receives what it sees.
             auto gather = [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
                 if (seen) {
-                    const float w = std::abs(sigmaDotN) * c;
-                    G[x] += *seen * w;
-                    if constexpr (Hits) (*H)[x] += w;
+                    const float w = receive<Hits>(G, H, x, *seen, sigmaDotN, c);
                     if constexpr (Glossy == kPoints) {
                         const uint32_t gx = lanes.at[x];
                         if (gx != GlossySurfaces::kNone) {
@@ -413,6 +441,63 @@ struct RadiositySolver::Engine
         flush();
     }
 
+    // x receives @a seen along a direction of coefficient c: its weight |sigma . n| c, added
+    // to its sum and (first iteration) to its hit weight. Returns the weight.
+    template<bool Hits>
+    static float receive(std::vector<AccT>& G, std::vector<Scalar>* H, uint32_t x,
+        const ValueT& seen, float sigmaDotN, float c)
+    {
+        const float w = std::abs(sigmaDotN) * c;
+        G[x] += seen * w;
+        if constexpr (Hits) (*H)[x] += w;
+        return w;
+    }
+
+    // Spread::Slabs: the groups @a groups over this rank's slab, each direction's passes
+    // chained over the ranks (SlabDistribution.h); each voxel gets gatherGroup()'s sums, in
+    // the same order. Diffuse scenes only.
+    template<bool Hits>
+    static void slabGroups(RadiositySolver& s, const std::vector<int>& groups,
+        const std::array<std::vector<ValueT>, SweepSchedule::kPatterns>& ordered,
+        std::vector<std::vector<AccT>>& gathered, std::vector<std::vector<Scalar>>& hits,
+        SweepProgress& progress)
+    {
+        Impl& impl = *s.mImpl;
+        const SweepSchedule& schedule = *impl.schedule;
+        auto& work = impl.state<ValueT>().slabWork;
+        auto& fronts = impl.state<ValueT>().slabFronts;
+        std::array<std::vector<size_t>, SweepSchedule::kGroups> mine;
+        std::vector<std::pair<int, size_t>> list;
+        for (const int g : groups) {
+            schedule.forDirections(g, [&](size_t k) { mine[size_t(g)].push_back(k); });
+            list.emplace_back(g, mine[size_t(g)].size());
+        }
+        const ScopedFlushDenormals flush;   // as forEachGroup(): the same bits
+        impl.pipeline->run(list,
+            [&](int g, size_t j, bool ascending, const std::vector<char>& in,
+                std::vector<char>& out) {
+                const size_t k = mine[size_t(g)][j];
+                const LineSweep& sweep = *schedule.patternOfGroup(g).sweep;
+                LineSweep::Workspace<ValueT>& w = work[size_t(g)];
+                const openvdb::Coord& sigma = s.directions().direction(k);
+                const bool reversed = schedule.reversed(k);
+                if (ascending) sweep.prepareSlab(sigma, reversed, w);
+                const std::vector<ValueT>& Bp = ordered[SweepSchedule::patternOf(g)];
+                std::vector<AccT>& G = gathered[size_t(g)];
+                std::vector<Scalar>* H = Hits ? &hits[size_t(g)] : nullptr;
+                const float c = impl.coefficient[k];
+                sweep.slabPass(sigma, reversed, ascending, w, fronts, in.data(), in.size(), out,
+                    [&](uint32_t y) { return Bp[y]; },
+                    [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
+                        if (seen) receive<Hits>(G, H, x, *seen, sigmaDotN, c);
+                    });
+                if (!ascending) progress.finished(1);
+            },
+            [&] {
+                if (progress.cancelled()) throw Cancelled("radiosity solve");
+            });
+    }
+
     static double iterate(RadiositySolver& s, std::vector<ValueT>& B,
         openvdb::util::NullInterrupter* interrupt)
     {
@@ -440,8 +525,10 @@ struct RadiositySolver::Engine
         std::vector<std::vector<Scalar>> hits(static_cast<size_t>(kGroups));
         // Under MPI each rank sweeps its own groups (Distribution.h) and counts only theirs.
         const Distribution& ranks = Distribution::world();
+        // With slabs every rank sweeps every direction, over its slab.
+        const bool slabs = impl.pipeline != nullptr;
         SweepProgress progress(interrupt,
-            schedule.directionsOf([&](int g) { return ranks.owns(g); }));
+            schedule.directionsOf([&](int g) { return slabs || ranks.owns(g); }));
         const std::vector<ValueT> previous = B;
         // Glossy voxels: per group, the light splatted on their points.
         Impl::State<ValueT>& st = impl.state<ValueT>();
@@ -464,39 +551,56 @@ struct RadiositySolver::Engine
             for (size_t p = 0; p < ordered.size(); ++p) {
                 if (!schedule.pattern(p).empty()) schedule.toPatternOrder(p, source, ordered[p]);
             }
-            schedule.forEachGroup(progress, "radiosity solve", mineInPhase, [&](int g) {
-                std::vector<AccT>& G = gathered[size_t(g)];
-                G.assign(n, openvdb::zeroVal<AccT>());
-                std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
-                const std::vector<ValueT>& Bp = ordered[SweepSchedule::patternOf(g)];
-                // Compiled with and without the hit weights, so that the sweeps of every
-                // iteration but the first test nothing for them, and with and without glossy
-                // voxels, so that a diffuse scene's sweeps test nothing for them.
-                GlossyLanes lanes;
-                if (glossy) {
-                    const size_t slots = impl.glossySlots[SweepSchedule::patternOf(g)].size();
-                    std::vector<AccT>& I = st.incident[size_t(g)];
-                    I.assign(glossyN * slots, openvdb::zeroVal<AccT>());
-                    lanes.at = impl.glossyAt[SweepSchedule::patternOf(g)].data();
-                    lanes.spec = st.spec.data();
-                    lanes.incident = I.data();
-                    lanes.points = P;
-                    lanes.slots = slots;
-                    if (H) {
-                        impl.glossyHits[size_t(g)].assign(glossyN * slots, 0.0);
-                        lanes.hits = impl.glossyHits[size_t(g)].data();
-                    }
+            if (slabs) {
+                std::vector<int> groups;
+                for (int g = 0; g < kGroups; ++g) {
+                    if (!inPhase(g) || schedule.patternOfGroup(g).empty()) continue;
+                    groups.push_back(g);
+                    gathered[size_t(g)].assign(n, openvdb::zeroVal<AccT>());
+                    if (measureHits) hits[size_t(g)].assign(n, Scalar(0));
                 }
-                if (H) H->assign(n, Scalar(0));
-                auto sweepAs = [&](auto kind) {
-                    if (H) gatherGroup<true, decltype(kind)::value>(s, g, Bp, G, H, lanes, progress);
-                    else gatherGroup<false, decltype(kind)::value>(s, g, Bp, G, H, lanes, progress);
-                };
-                if (!glossy) sweepAs(std::integral_constant<int, kDiffuse>());
-                else if (glossy->harmonics()) sweepAs(std::integral_constant<int, kHarmonics>());
-                else sweepAs(std::integral_constant<int, kPoints>());
-            });
-            if (ranks.distributed()) {
+                if (measureHits) slabGroups<true>(s, groups, ordered, gathered, hits, progress);
+                else slabGroups<false>(s, groups, ordered, gathered, hits, progress);
+            } else {
+                schedule.forEachGroup(progress, "radiosity solve", mineInPhase, [&](int g) {
+                    std::vector<AccT>& G = gathered[size_t(g)];
+                    G.assign(n, openvdb::zeroVal<AccT>());
+                    std::vector<Scalar>* H = measureHits ? &hits[size_t(g)] : nullptr;
+                    const std::vector<ValueT>& Bp = ordered[SweepSchedule::patternOf(g)];
+                    // Compiled with and without the hit weights, so that the sweeps of every
+                    // iteration but the first test nothing for them, and with and without glossy
+                    // voxels, so that a diffuse scene's sweeps test nothing for them.
+                    GlossyLanes lanes;
+                    if (glossy) {
+                        const size_t slots = impl.glossySlots[SweepSchedule::patternOf(g)].size();
+                        std::vector<AccT>& I = st.incident[size_t(g)];
+                        I.assign(glossyN * slots, openvdb::zeroVal<AccT>());
+                        lanes.at = impl.glossyAt[SweepSchedule::patternOf(g)].data();
+                        lanes.spec = st.spec.data();
+                        lanes.incident = I.data();
+                        lanes.points = P;
+                        lanes.slots = slots;
+                        if (H) {
+                            impl.glossyHits[size_t(g)].assign(glossyN * slots, 0.0);
+                            lanes.hits = impl.glossyHits[size_t(g)].data();
+                        }
+                    }
+                    if (H) H->assign(n, Scalar(0));
+                    auto sweepAs = [&](auto kind) {
+                        constexpr int kKind = decltype(kind)::value;
+                        if (H) gatherGroup<true, kKind>(s, g, Bp, G, H, lanes, progress);
+                        else gatherGroup<false, kKind>(s, g, Bp, G, H, lanes, progress);
+                    };
+                    if (!glossy) {
+                        sweepAs(std::integral_constant<int, kDiffuse>());
+                    } else if (glossy->harmonics()) {
+                        sweepAs(std::integral_constant<int, kHarmonics>());
+                    } else {
+                        sweepAs(std::integral_constant<int, kPoints>());
+                    }
+                });
+            }
+            if (ranks.distributed() && !slabs) {
                 // Every rank gets every group's sums from its owner, then sums them in group
                 // order as one process does: the same bits for any number of ranks.
                 for (int g = 0; g < kGroups; ++g) {
@@ -594,11 +698,22 @@ struct RadiositySolver::Engine
             maxChange = std::max(maxChange, magnitudeOfDiff(st.spec[e], previousSpec[e]));
             maxSize = std::max(maxSize, magnitude(st.spec[e]));
         }
+        if (slabs) {
+            // Over the whole scene.
+            maxChange = ranks.maximum(maxChange);
+            maxSize = ranks.maximum(maxSize);
+        }
         return maxSize > 0.0 ? maxChange / maxSize : 0.0;
     }
 };
 
 RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& options)
+    : RadiositySolver(scene, options, nullptr)
+{
+}
+
+RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& options,
+    std::shared_ptr<const SlabContext> slab)
     : IterativeSolver(FixedPointIteration(options.maxIterations, options.tolerance,
           options.accelerate, options.andersonDepth))
     , mScene(scene)
@@ -625,6 +740,18 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     const size_t dirs = directions.size(), n = scene.size();
 
     Impl& impl = *mImpl;
+    impl.slab = std::move(slab);
+    if (impl.slab) {
+        // What the slab passes do not carry (SlabDistribution.h).
+        auto refuse = [](const char* what) {
+            OPENVDB_THROW(openvdb::ValueError, "a solve spread over slabs " << what);
+        };
+        if (scene.isGlossy()) refuse("needs diffuse surfaces (no `specular` grid)");
+        if (options.lines != LineType::Naive) refuse("needs naive lines");
+        if (options.visibility != Visibility::Sweep) refuse("needs the line sweeps");
+        if (options.accelerate != Acceleration::None) refuse("is not Anderson-accelerated");
+        impl.pipeline.reset(new SlabPipeline(Distribution::world()));
+    }
     if (scene.isGlossy()) {
         // The lobes' light is carried by the sweeps only; their state is not B alone.
         if (options.update == UpdateScheme::Progressive) {
@@ -643,8 +770,9 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     }
     // A cache pays from the second iteration on. Glossy senders' light depends on the
     // direction, which the cache's replay does not carry: glossy scenes sweep every time.
+    // Slabs: a replay reads the B of voxels other ranks hold.
     if (options.visibilityCache > 0 && options.visibility == Visibility::Sweep
-        && options.maxIterations > 1 && !impl.glossy) {
+        && options.maxIterations > 1 && !impl.glossy && !impl.slab) {
         impl.cache.reset(new VisibilityCache(dirs, n, options.visibilityCache));
         impl.offered.assign(dirs, 0);
     }
@@ -655,7 +783,9 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     }
     // Per-voxel normalisation of the direction factors (DirectionSet.h).
     impl.invZ = directions.inverseHemisphereSums(scene.normals());
-    impl.regions = findRegions(scene.voxels(), scene.normals(), options.lines, kEnclosureBlocks);
+    impl.regions = impl.slab ? impl.slab->regions
+                             : findRegions(scene.voxels(), scene.normals(), options.lines,
+                                   kEnclosureBlocks);
     const std::vector<uint32_t>* regions = impl.regions.cavities > 0 ? &impl.regions.region
                                                                       : nullptr;
     SweepSchedule::Layout layout;
@@ -664,6 +794,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     layout.normals = &scene.normals();
     layout.depth = options.occlusionDepth;
     layout.regions = regions;
+    layout.frame = impl.slab ? &impl.slab->frame : nullptr;
     impl.schedule.reset(new SweepSchedule(scene.voxels(), std::move(directions), layout));
     if (impl.cache) {
         // Each accumulator group this rank sweeps keeps its share of the budget
@@ -714,14 +845,14 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
 
     // Exact direct light: the sweeps solve R = rho (D + gathered R) for R = B - E.
     impl.source = &scene.emission();
-    impl.exact = usesExactDirect(options.direct, scene);
+    impl.exact = impl.slab ? impl.slab->exact : usesExactDirect(options.direct, scene);
     if (impl.exact) {
-        impl.emitters = Emitters(scene);
+        impl.emitters = impl.slab ? impl.slab->emitters : Emitters(scene);
         impl.source = &impl.reflected;   // 0 until the first iterate() computes D
         impl.startFromSource = true;
     }
 
-    impl.wide = solvesInDouble(scene.albedo(), options.precision);
+    impl.wide = impl.slab ? impl.slab->wide : solvesInDouble(scene.albedo(), options.precision);
     impl.withState(scene.isRgb(), [&](auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using ValueT = typename decltype(st.B)::value_type;
@@ -779,9 +910,11 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
             for (const auto& [dir, light] : in) gl.splat(dir, openvdb::Vec3f(light), splat);
         };
     }
-    impl.direct = directIrradiance(mScene, impl.emitters, d,
-        impl.regions.cavities > 0 ? &impl.regions.region : nullptr, interrupt,
-        impl.glossy ? &sink : nullptr);
+    // Slabs: computed on the whole scene (solveRadiosity()).
+    impl.direct = impl.slab ? impl.slab->direct
+                            : directIrradiance(mScene, impl.emitters, d,
+                                  impl.regions.cavities > 0 ? &impl.regions.region : nullptr,
+                                  interrupt, impl.glossy ? &sink : nullptr);
     // Under MPI each rank's sink took its own voxels' arrivals (Distribution.h).
     if (!impl.glossyDirect.empty()) {
         Distribution::world().combine(&impl.glossyDirect[0][0], 3 * impl.glossyDirect.size());
@@ -959,6 +1092,18 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
                 VisibilityCache::codeFor(dirs, n, kept)));
         }
         bytes = kept > SIZE_MAX - bytes ? SIZE_MAX : bytes + kept;   // a budget may be "all"
+    }
+    const int slabs = options.spread == Spread::Slabs ? Distribution::world().ranks() : 1;
+    if (slabs > 1) {
+        // One slab's share of the per-voxel arrays (no cache), each group's workspace
+        // (slots, facing) and fronts over the whole box's lines (at most ~3 faces of it),
+        // and what is found on the whole scene: regions and direct light.
+        const openvdb::Coord d = scene.voxels().bbox().dim();
+        const double face = std::max({double(d.x()) * d.y(), double(d.y()) * d.z(),
+            double(d.x()) * d.z()});
+        const double lines = std::min(3.0 * face, 4.0 * double(n) + 65536.0);
+        bytes = bytes / size_t(slabs) + n / size_t(slabs) * size_t(kGroups) * 8
+            + size_t(double(kGroups) * lines * double(8 + c + 28)) + n * (4 + 12);
     }
     // Enclosure's fill: per 8^3 block of the bounding box and per leaf, up to its cap.
     if (regionBlocks(scene.voxels()) <= kEnclosureBlocks) bytes += regionsBytes(scene.voxels());
@@ -1215,7 +1360,13 @@ std::string
 RadiositySolver::describe() const
 {
     std::ostringstream os;
-    os << "solving " << withCommas(mScene.size()) << " voxels, " << directions().size()
+    os << "solving " << withCommas(mImpl->slab ? mImpl->slab->frame.voxels : mScene.size())
+       << " voxels";
+    if (mImpl->slab) {
+        os << " in " << mImpl->slab->slabs << " slabs (" << withCommas(mScene.size())
+           << " on this rank)";
+    }
+    os << ", " << directions().size()
        << " directions (nearest to " << mOptions.directions << "), "
        << stats().lines << " lines"
        << (mScene.isRgb() ? ", RGB" : "")
@@ -1241,14 +1392,16 @@ RadiositySolver::visibilityCacheFor(const Scene& scene, const RadiosityOptions& 
     return size_t(std::min(std::max(0.5 * rest, 0.0), 1e18));
 }
 
-openvdb::GridBase::Ptr
-solveRadiosity(const Scene& scene, const RadiosityOptions& options,
-    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
-    openvdb::GridBase::Ptr* specular)
+namespace {
+
+// Iterate @a solver to its end (SolveControl), framed as one progress step unless the control
+// reports each iteration, and note the direct light's cost.
+void
+runSolver(RadiositySolver& solver, openvdb::util::NullInterrupter* interrupt,
+    const SolveControl& control)
 {
     const bool framed = interrupt && !control.beforeIteration;
     if (framed) interrupt->start("solving radiosity");
-    RadiositySolver solver(scene, options);
     iterateSolve(solver, control, interrupt);
     if (framed) interrupt->end();
     if (control.note && solver.exactDirect()) {
@@ -1259,6 +1412,137 @@ solveRadiosity(const Scene& scene, const RadiosityOptions& options,
            << withCommas(size_t(d.factors)) << " form factors, " << d.seconds << " s";
         control.note(os.str());
     }
+}
+
+// This process's resident bytes (Linux; 0 elsewhere).
+double
+residentNow()
+{
+    std::ifstream statm("/proc/self/statm");
+    double pages = 0.0, resident = 0.0;
+    if (statm >> pages >> resident) return resident * double(::sysconf(_SC_PAGE_SIZE));
+    return 0.0;
+}
+
+// Spread::Slabs under mpirun: this rank solves its slab of @a scene (SlabDistribution.h),
+// with the regions and the direct light found on the whole scene, and rank 0 gathers the
+// slabs' radiosity into the whole scene's grid. @a owned: the scene, where the caller gave it
+// up, so that the ranks other than 0 free it once their slab is set up.
+openvdb::GridBase::Ptr
+solveSlabs(const Scene& scene, Scene* owned, const RadiosityOptions& options,
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control)
+{
+    const Distribution& ranks = Distribution::world();
+    if (!control.checkpoint.empty() || !control.resume.empty()) {
+        OPENVDB_THROW(openvdb::ValueError, "a solve spread over slabs keeps no checkpoints");
+    }
+    const SlabPartition partition(scene.voxels(), ranks.ranks());
+    const std::vector<uint32_t> mine = partition.voxelsOf(scene.voxels(), ranks.rank());
+    auto context = std::make_shared<RadiositySolver::SlabContext>();
+    context->frame.box = scene.voxels().bbox();
+    context->frame.voxels = scene.size();
+    context->slabs = ranks.ranks();
+    context->wide = solvesInDouble(scene.albedo(), options.precision);
+    context->exact = usesExactDirect(options.direct, scene);
+    {
+        Regions whole = findRegions(scene.voxels(), scene.normals(), options.lines,
+            kEnclosureBlocks);
+        context->regions.cavities = whole.cavities;
+        context->regions.analysed = whole.analysed;
+        context->regions.region.resize(mine.size());
+        for (size_t k = 0; k < mine.size(); ++k) {
+            context->regions.region[k] = whole.region[mine[k]];
+        }
+        if (context->exact) {
+            context->emitters = Emitters(scene);
+            DirectLightOptions d;
+            d.samples = options.directSamples;
+            // Shared out between the ranks in blocks (Distribution.h) and combined.
+            DirectIrradiance D = directIrradiance(scene, context->emitters, d,
+                whole.cavities > 0 ? &whole.region : nullptr, interrupt);
+            context->direct = D;
+            context->direct.irradiance.resize(mine.size());
+            for (size_t k = 0; k < mine.size(); ++k) {
+                context->direct.irradiance[k] = D.irradiance[mine[k]];
+            }
+        }
+    }
+    const Scene slab = scene.subset(mine);
+    if (owned && ranks.rank() != 0) *owned = Scene();
+#ifdef __GLIBC__
+    // What the set-up on the whole scene freed (many small blocks) back to the system: what a
+    // rank holds while it solves is then its slab's share.
+    ::malloc_trim(0);
+#endif
+    RadiositySolver solver(slab, options, context);
+    runSolver(solver, interrupt, control);
+    // What each rank holds with its slab's solver: what falls with the ranks.
+    const double resident = residentNow();
+    const double most = ranks.maximum(resident), least = -ranks.maximum(-resident);
+
+    // The slabs' radiosity, in slab order, to rank 0.
+    const bool rgb = slab.isRgb();
+    const void* data = rgb ? static_cast<const void*>(solver.rgb().data())
+                           : static_cast<const void*>(solver.grey().data());
+    const size_t width = rgb ? sizeof(openvdb::Vec3f) : sizeof(float);
+    const std::vector<std::vector<char>> parts = ranks.gather(data, mine.size() * width, 0);
+    if (ranks.rank() != 0) return nullptr;
+    std::vector<float> grey(rgb ? 0 : scene.size());
+    std::vector<openvdb::Vec3f> colour(rgb ? scene.size() : 0);
+    char* whole = rgb ? reinterpret_cast<char*>(colour.data())
+                      : reinterpret_cast<char*>(grey.data());
+    for (int r = 0; r < ranks.ranks(); ++r) {
+        const std::vector<uint32_t> voxels = partition.voxelsOf(scene.voxels(), r);
+        const std::vector<char>& part = parts[size_t(r)];
+        if (part.size() != voxels.size() * width) {
+            OPENVDB_THROW(openvdb::RuntimeError, "rank " << r << " sent " << part.size()
+                << " bytes for " << voxels.size() << " voxels");
+        }
+        for (size_t k = 0; k < voxels.size(); ++k) {
+            std::memcpy(whole + size_t(voxels[k]) * width, part.data() + k * width, width);
+        }
+    }
+    if (control.note) {
+        std::ostringstream os;
+        os.precision(3);
+        os << "slabs: " << ranks.ranks() << " ranks, rank 0 held " << withCommas(mine.size())
+           << " of " << withCommas(scene.size()) << " voxels";
+        if (most > 0.0) {
+            os << "; resident while solving: " << formatBytes(least) << " to "
+               << formatBytes(most) << " per rank";
+        }
+        control.note(os.str());
+    }
+    return rgb ? makeRadiosityGrid(scene, colour, solver.stats())
+               : makeRadiosityGrid(scene, grey, solver.stats());
+}
+
+} // namespace
+
+openvdb::GridBase::Ptr
+solveRadiosity(Scene&& scene, const RadiosityOptions& options,
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
+    openvdb::GridBase::Ptr* specular)
+{
+    if (options.spread == Spread::Slabs && Distribution::world().distributed()) {
+        if (specular) specular->reset();
+        return solveSlabs(scene, &scene, options, interrupt, control);
+    }
+    return solveRadiosity(static_cast<const Scene&>(scene), options, interrupt, control,
+        specular);
+}
+
+openvdb::GridBase::Ptr
+solveRadiosity(const Scene& scene, const RadiosityOptions& options,
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
+    openvdb::GridBase::Ptr* specular)
+{
+    if (options.spread == Spread::Slabs && Distribution::world().distributed()) {
+        if (specular) specular->reset();
+        return solveSlabs(scene, nullptr, options, interrupt, control);
+    }
+    RadiositySolver solver(scene, options);
+    runSolver(solver, interrupt, control);
     if (control.note && solver.cachedDirections() > 0) {
         control.note("visibility cache: " + std::to_string(solver.cachedDirections()) + " of "
             + std::to_string(solver.directions().size()) + " directions kept ("

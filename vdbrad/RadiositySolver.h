@@ -70,6 +70,19 @@ enum class Visibility
     RayCast
 };
 
+/// How a solve under mpirun (Distribution.h) shares the work between the ranks.
+enum class Spread
+{
+    /// Every rank holds the whole scene and sweeps its share of the directions (thesis
+    /// §6.2.1.2); the ranks add their sums once per half-iteration.
+    Directions,
+    /// Every rank holds one slab of the scene along x and sweeps every direction over it,
+    /// passing line fronts to its neighbours (SlabDistribution.h, thesis §6.2.2.3): the memory
+    /// per rank falls with the ranks. Diffuse scenes, naive lines, no Anderson acceleration;
+    /// the visibility cache is not used.
+    Slabs
+};
+
 struct RadiosityOptions
 {
     /// Number of direction pairs (one sweep serves s and -s); the nearest count a discrete
@@ -108,6 +121,8 @@ struct RadiosityOptions
     DirectMode direct = DirectMode::Auto;
     /// Shadow rays per voxel for exact direct light (DirectLightOptions::samples), >= 1.
     int directSamples = 16;
+    /// Under mpirun: directions or slabs per rank (the same bits either way and alone).
+    Spread spread = Spread::Directions;
     /// Glossy voxels (a scene with a `specular` grid): their lobes' model and representation.
     /// They need Jacobi or in-place updates, no Anderson acceleration and the line sweeps; the
     /// visibility cache is not used for them.
@@ -210,6 +225,15 @@ public:
     /// view-dependent (Renderer.h); null for a diffuse scene.
     openvdb::GridBase::Ptr specularGrid() const;
 
+    /// What the solver of one slab of a data-distributed solve takes from the whole scene
+    /// (solveRadiosity() with Spread::Slabs builds it).
+    struct SlabContext;
+    /// @brief The solver of the slab @a slab of a whole scene, in a data-distributed solve
+    /// whose ranks each build one (SlabDistribution.h); iterate() exchanges line fronts with
+    /// the neighbouring ranks.
+    RadiositySolver(const Scene& slab, const RadiosityOptions& options,
+        std::shared_ptr<const SlabContext> context);
+
 private:
     struct Impl;
     template<typename ValueT> struct Engine;
@@ -235,8 +259,17 @@ private:
 /// openvdb::GridBase::Ptr radiosity = vdbrad::solveRadiosity(scene, options);
 /// @endcode
 /// @param specular  if not null and the scene is glossy, receives specularGrid() (else null)
+/// Under mpirun with Spread::Slabs, rank 0 alone returns the grid (the others null).
 openvdb::GridBase::Ptr solveRadiosity(const Scene& scene,
     const RadiosityOptions& options = RadiosityOptions(),
+    openvdb::util::NullInterrupter* interrupt = nullptr,
+    const SolveControl& control = SolveControl(), openvdb::GridBase::Ptr* specular = nullptr);
+
+/// @brief solveRadiosity() of a scene it takes over: under mpirun with Spread::Slabs the ranks
+/// other than 0 free it once their slab is set up, so that what they hold while solving is
+/// their slab's share (rank 0 keeps it for the output grid). Otherwise as above; @a scene is
+/// left as it was.
+openvdb::GridBase::Ptr solveRadiosity(Scene&& scene, const RadiosityOptions& options,
     openvdb::util::NullInterrupter* interrupt = nullptr,
     const SolveControl& control = SolveControl(), openvdb::GridBase::Ptr* specular = nullptr);
 

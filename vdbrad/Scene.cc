@@ -25,6 +25,28 @@ Scene::Scene(openvdb::math::Transform::Ptr transform, VoxelIndex voxels,
 {
 }
 
+Scene
+Scene::subset(const std::vector<uint32_t>& voxels) const
+{
+    openvdb::MaskTree mask;
+    for (const uint32_t i : voxels) mask.setValueOn(mVoxels.coord(i));
+    VoxelIndex index(mask);
+    // An index numbers voxels in tree order, which a subset's tree keeps.
+    for (size_t k = 0; k < voxels.size(); ++k) {
+        if (index.coord(k) != mVoxels.coord(voxels[k])) {
+            OPENVDB_THROW(openvdb::ValueError, "Scene::subset: voxels not in increasing order");
+        }
+    }
+    std::vector<openvdb::Vec3f> normals(voxels.size());
+    for (size_t k = 0; k < voxels.size(); ++k) normals[k] = mNormals[voxels[k]];
+    Scene s(mTransform, std::move(index), std::move(normals), mAlbedo.subset(voxels),
+        mEmission.subset(voxels), mSurfaceName, mKind, mEmissionArea.subset(voxels));
+    s.mSpecular = mSpecular.subset(voxels);
+    s.mRoughness = mRoughness.subset(voxels);
+    s.mRaisedRoughness = 0;
+    return s;
+}
+
 openvdb::Vec3f
 Scene::worldNormal(size_t i) const
 {

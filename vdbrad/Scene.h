@@ -91,6 +91,10 @@ public:
 
     /// Bytes held by the arrays (not counting the input grids).
     size_t memUsage() const;
+    /// @brief The scene of the voxels @a voxels (increasing indices into this one) alone: one
+    /// rank's slab of a data-distributed solve (SlabDistribution.h). Its voxel i is
+    /// voxels[i] of this one.
+    Scene subset(const std::vector<uint32_t>& voxels) const;
 
 private:
     openvdb::math::Transform::Ptr mTransform;

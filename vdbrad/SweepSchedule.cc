@@ -25,6 +25,7 @@ SweepSchedule::SweepSchedule(const VoxelIndex& voxels, DirectionSet directions,
         if (layout.sweeps) {
             pattern.sweep.reset(new LineSweep(voxels, order, layout.normals, layout.lines,
                 layout.depth, layout.regions));
+            if (layout.frame) pattern.sweep->setFrame(*layout.frame);
         }
     }
 }

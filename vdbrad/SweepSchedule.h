@@ -97,6 +97,7 @@ public:
         const std::vector<openvdb::Vec3f>* normals = nullptr;   ///< surfaces; null: a medium
         float depth = 1.f;                                   ///< occlusion depth, voxels
         const std::vector<uint32_t>* regions = nullptr;      ///< air regions; null: one
+        const LineSweep::Frame* frame = nullptr;   ///< a slab's whole scene (LineSweep::setFrame)
     };
 
     /// @brief Deal @a directions to the patterns and lay out @a voxels in each used pattern's
