@@ -36,7 +36,9 @@ Attribute::isZero() const
 Attribute
 Attribute::subset(const std::vector<uint32_t>& at) const
 {
-    Attribute a = *this;
+    Attribute a;   // not a copy: a slab's arrays would keep the whole scene's capacity
+    a.mStorage = mStorage;
+    a.mUniform = mUniform;
     if (mStorage == Storage::Grey) {
         a.mGrey.resize(at.size());
         for (size_t k = 0; k < at.size(); ++k) a.mGrey[k] = mGrey[at[k]];

@@ -1096,14 +1096,15 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     const int slabs = options.spread == Spread::Slabs ? Distribution::world().ranks() : 1;
     if (slabs > 1) {
         // One slab's share of the per-voxel arrays (no cache), each group's workspace
-        // (slots, facing) and fronts over the whole box's lines (at most ~3 faces of it),
-        // and what is found on the whole scene: regions and direct light.
+        // (slots, facing), one set of fronts over the whole box's lines (at most ~3 faces of
+        // it) and a message in and out (a record and a ghost per line at most), and what is
+        // found on the whole scene: regions and direct light.
         const openvdb::Coord d = scene.voxels().bbox().dim();
         const double face = std::max({double(d.x()) * d.y(), double(d.y()) * d.z(),
             double(d.x()) * d.z()});
         const double lines = std::min(3.0 * face, 4.0 * double(n) + 65536.0);
         bytes = bytes / size_t(slabs) + n / size_t(slabs) * size_t(kGroups) * 8
-            + size_t(double(kGroups) * lines * double(8 + c + 28)) + n * (4 + 12);
+            + size_t(lines * double((8 + c) + 2 * (8 + c + 28))) + n * (4 + 12);
     }
     // Enclosure's fill: per 8^3 block of the bounding box and per leaf, up to its cap.
     if (regionBlocks(scene.voxels()) <= kEnclosureBlocks) bytes += regionsBytes(scene.voxels());
