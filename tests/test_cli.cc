@@ -572,12 +572,17 @@ TEST_F(CliTest, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits)
         // The binary itself (not the fixture's shell function) runs in the background, so that
         // $! is the tool's own process.
         const std::string run = std::string("'" VDBRAD_CLI_PATH "' ") + c.command + " ";
-        const Result full = sh(run + "full.vdb --iterations 12 --quiet " + c.options);
-        ASSERT_EQ(full.status, 0) << full.err;
-        const Result killed = sh("rm -f ck part.vdb; " + run + "part.vdb --iterations 1000 "
-            "--checkpoint ck --checkpoint-every 3 --quiet " + c.options + " & pid=$!; "
-            "for i in $(seq 600); do [ -e ck ] && break; sleep 0.05; done; "
-            "kill -TERM $pid; wait $pid; echo \"status $?\"");
+        // An iteration takes a millisecond or two and the solve converges (residual 0) in
+        // well under a second: on a busy machine the signal may come after it has finished
+        // (status 0, its checkpoint removed). Such a run is tried again.
+        Result killed;
+        for (int attempt = 0; attempt < 5; ++attempt) {
+            killed = sh("rm -f ck part.vdb; " + run + "part.vdb --iterations 1000 "
+                "--checkpoint ck --checkpoint-every 3 --quiet " + c.options + " & pid=$!; "
+                "for i in $(seq 600); do [ -e ck ] && break; sleep 0.05; done; "
+                "kill -TERM $pid; wait $pid; echo \"status $?\"");
+            if (killed.out.find("status 0") == std::string::npos) break;
+        }
         EXPECT_NE(killed.out.find("status 130"), std::string::npos) << c.options << ": "
             << killed.out << killed.err;
         EXPECT_NE(killed.err.find("cancelled"), std::string::npos) << killed.err;
@@ -586,12 +591,20 @@ TEST_F(CliTest, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits)
         const Result resumed = sh(run + "resumed.vdb --iterations 12 --resume ck --quiet "
             + c.options);
         ASSERT_EQ(resumed.status, 0) << resumed.err;
+        // Iterations take milliseconds here: on a busy machine the killed run may have saved a
+        // later checkpoint than the 12th before the signal came, and the resumed run then ends
+        // where it was restored. The uninterrupted run goes as far.
+        const VdbFile r = readVdbFile(path("resumed.vdb"));
+        const int32_t iterations = findGrid(r.grids, c.grid)->metaValue<int32_t>(
+            "vdbrad:iterations");
+        EXPECT_GE(iterations, 12);
+        const Result full = sh(run + "full.vdb --iterations " + std::to_string(iterations)
+            + " --quiet " + c.options);
+        ASSERT_EQ(full.status, 0) << full.err;
         const auto a = valueBits(path("full.vdb"), c.grid);
         const auto b = valueBits(path("resumed.vdb"), c.grid);
         ASSERT_FALSE(a.empty());
-        EXPECT_TRUE(a == b) << c.options;
-        const VdbFile r = readVdbFile(path("resumed.vdb"));
-        EXPECT_EQ(findGrid(r.grids, c.grid)->metaValue<int32_t>("vdbrad:iterations"), 12);
+        EXPECT_TRUE(a == b) << c.options << " (" << iterations << " iterations)";
     }
     // A checkpoint is refused, in one line and before any output, when it is truncated, of
     // another problem, or not a checkpoint.
