@@ -117,7 +117,7 @@ main(int argc, char** argv)
     for (int c = 0; c < 3; ++c) {
         CloudTransferOptions o;
         o.surfaces = &scene;
-        o.surfaceChannel = c;
+        o.channel = c;
         o.irradiance = 0.0;
         o.directions = dirs;
         CloudTransfer t(fog, o);

@@ -104,10 +104,12 @@ runInfo(const Arguments& a)
     const std::string label = inputLabel(in);
     describeGrids(std::cout, label, file);
 
+    const std::string density = a.getString("density");
     const GridRoles roles = forFile(label, [&] {
-        return identifyRoles(file.grids, options.surface);
+        return identifyRoles(file.grids, options.surface, density);
     });
     std::cout << "scene contract:\n";
+    for (const std::string& note : roles.notes) std::cout << "  read:      " << note << "\n";
     int status = 0;
     // The first problem is the one error line; a second one (a file with a bad surface and a bad
     // cloud) is described with the rest, on standard output.
@@ -152,6 +154,7 @@ runInfo(const Arguments& a)
         try {
             // With a surface in the file, `albedo` is the surfaces' (solve-cloud solves both).
             CloudOptions cloudOpts;
+            cloudOpts.density = density;
             cloudOpts.albedoGrid = !roles.surface;
             const Cloud cloud = buildCloud(file.grids, cloudOpts);
             float lo = std::numeric_limits<float>::max(), hi = 0.f;
@@ -169,7 +172,7 @@ runInfo(const Arguments& a)
             report("cloud:    ", e);
         }
     } else {
-        std::cout << "  cloud:     none (no float grid named 'density')\n";
+        std::cout << "  cloud:     none (no float or double grid named '" << density << "')\n";
     }
     // A solved file: the result and how it was obtained.
     const openvdb::GridBase::ConstPtr result = findGrid(file.grids, names::kRadiosity);
@@ -196,9 +199,7 @@ runInfo(const Arguments& a)
     std::vector<std::string> passed;
     for (const auto& g : file.grids) {
         if (g == result) continue;
-        if (g != roles.surface && g != roles.albedo && g != roles.emission && g != roles.density
-            && g != roles.specular && g != roles.roughness && g != roles.emissionArea
-            && g->getName() != names::kSpecularRadiosity) {
+        if (!roles.uses(g) && g->getName() != names::kSpecularRadiosity) {
             passed.push_back("'" + g->getName() + "'");
         }
     }
@@ -218,6 +219,7 @@ runSurface(const Arguments& a)
     checkOutput(out, {in}, a.flag("overwrite"));
     const VdbFile file = readInput(in);
     const std::string label = inputLabel(in);
+    describeReading(a, label, file, options.surface, names::kDensity);
     ProgressInterrupter progress(a.flag("quiet"));
     const Scene scene = forFile(label, [&] { return buildScene(file.grids, options, &progress); });
     if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");

@@ -48,6 +48,7 @@ runRender(const Arguments& a)
     o.directSamples = a.getInt("direct-samples");
     o.glossyRays = a.getInt("glossy-rays");
     o.cloud.extinctionScale = float(a.getFloat("extinction-scale"));
+    o.cloud.density = a.getString("density");
     o.cloudSource = a.getString("cloud-source");
     const ExrPixel pixel = choice<ExrPixel>(a, "exr-type",
         {{"half", ExrPixel::Half}, {"float", ExrPixel::Float}});
@@ -74,6 +75,7 @@ runRender(const Arguments& a)
 
     const VdbFile file = readInput(in);
     const std::string label = inputLabel(in);
+    describeReading(a, label, file, o.scene.surface, o.cloud.density);
     ProgressInterrupter progress(a.flag("quiet"));
     const Image image = forFile(label, [&] {
         progress.start("reading the scene");

@@ -115,6 +115,7 @@ runSolve(const Arguments& a)
     SolveSession session(a, in, out);
     const VdbFile& file = session.file();
     const std::string& label = session.label();
+    describeReading(a, label, file, sceneOpts.surface, names::kDensity);
     ProgressInterrupter& progress = session.progress();
     Scene scene = forFile(label, [&] {
         return buildScene(file.grids, sceneOpts, &progress);

@@ -45,6 +45,7 @@ runSolveCloud(const Arguments& a)
     CloudOptions cloudOpts;
     cloudOpts.extinctionScale = float(a.getFloat("extinction-scale"));
     cloudOpts.defaultAlbedo = float(a.getFloat("albedo"));
+    cloudOpts.density = a.getString("density");
     CloudTransferOptions o;
     const std::vector<double> sun = numberList(a, "sun", 2, "zenith,azimuth in degrees");
     o.sunZenith = sun[0];
@@ -89,11 +90,12 @@ runSolveCloud(const Arguments& a)
     SolveSession session(a, in, out);
     const VdbFile& file = session.file();
     const std::string& label = session.label();
+    describeReading(a, label, file, "", cloudOpts.density);
     ProgressInterrupter& progress = session.progress();
     // A surface scene in the same file (a level set or `normal` grid) is solved with the fog
     // (unless --no-surfaces); its `albedo` grid is the surfaces', not the fog's.
     const bool hasSurface = forFile(label, [&] {
-        return bool(identifyRoles(file.grids).surface);
+        return bool(identifyRoles(file.grids, "", cloudOpts.density).surface);
     });
     const bool withSurfaces = hasSurface && !a.flag("no-surfaces");
     cloudOpts.albedoGrid = !hasSurface;

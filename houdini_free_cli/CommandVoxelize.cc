@@ -41,6 +41,8 @@ runVoxelize(const Arguments& a)
         }
     }();
     progress.end(std::to_string(mesh.triangles.size()) + " triangles");
+    // The reader's warnings start with the file and line, as its errors do.
+    for (const std::string& w : mesh.warnings) std::cerr << "vdbrad: warning: " << w << "\n";
     for (const Material& m : mesh.materials) {
         if (o.specular && m.reflectance() > 1.f) {
             std::ostringstream os;
@@ -52,7 +54,9 @@ runVoxelize(const Arguments& a)
         }
     }
     VdbFile file;
-    file.grids = forFile(in, [&] { return voxelizeMesh(mesh, o, &progress); });
+    std::vector<std::string> warnings;
+    file.grids = forFile(in, [&] { return voxelizeMesh(mesh, o, &progress, &warnings); });
+    for (const std::string& w : warnings) warn(in, w);
     const openvdb::GridBase::Ptr normal = file.grids.front();
     if (!a.flag("quiet")) {
         std::cerr << "voxelized " << in << ": " << withCommas(normal->activeVoxelCount())

@@ -20,6 +20,13 @@ namespace {
 // ---- option groups shared by several commands ---------------------------------------------------
 
 const OptionSpec kQuiet{"quiet", OptionType::Flag, "", "", "no progress messages on stderr"};
+// Files from other tools: what was read how (double grids as float, Cd as albedo, ...).
+const OptionSpec kVerbose{"verbose", OptionType::Flag, "", "",
+    "say on stderr how the input's grids were read: double or vec3d grids converted to float, "
+    "half-float storage, `Cd` or `color` taken as the albedo"};
+const OptionSpec kDensity{"density", OptionType::String, "density", "smoke",
+    "the fog volume's grid (float or double): extinction per world unit, times "
+    "--extinction-scale"};
 const OptionSpec kOverwrite{"overwrite", OptionType::Flag, "", "",
     "allow the output to replace an input file"};
 // Convergence acceleration, the same for solve and solve-cloud (Acceleration.h).
@@ -70,6 +77,7 @@ sceneOptionSpecs()
         OptionSpec{"roughness", OptionType::Float, "0.5", "0.3",
             "roughness of glossy voxels when the file has a `specular` grid and no `roughness` "
             "grid"}.within(0.1, 1),
+        kVerbose,
     };
 }
 
@@ -137,8 +145,9 @@ commands()
                 "vdbrad make slab slab.vdb --tau 20"},
             runMake},
         {"voxelize", "MESH OUT.vdb", 2, 2,
-            "voxelize an OBJ (with MTL: Kd albedo, Ke emission) or PLY mesh into a surface "
-            "scene (normal, albedo, emission grids)",
+            "voxelize an OBJ (with MTL: Kd albedo, Ke emission; OBJ objects and groups as a "
+            "`material_id` grid) or PLY mesh into a surface scene (normal, albedo, emission "
+            "grids)",
             {OptionSpec{"res", OptionType::Int, "128", "256",
                     "voxels along the mesh's longest axis"}.within(1, 16384),
                 OptionSpec{"voxel-size", OptionType::Float, "", "0.01",
@@ -159,7 +168,7 @@ commands()
             runVoxelize},
         {"info", "FILE", 1, 1,
             "describe a file's grids and what the scene contract finds in it",
-            sceneOptionSpecs(),
+            concat(sceneOptionSpecs(), {kDensity}),
             {"vdbrad info scene.vdb", "vdbrad make cornell - | vdbrad info -"},
             runInfo},
         {"surface", "IN OUT", 2, 2,
@@ -289,6 +298,7 @@ commands()
                     "spherical harmonics exactly to twice the phase order: the error then falls "
                     "with --directions and --phase-order) or cells (each direction's solid "
                     "angle)"}.oneOf({"harmonic", "cells"}),
+                kDensity,
                 OptionSpec{"extinction-scale", OptionType::Float, "1", "10",
                     "extinction per world unit = density x this"}.above(0),
                 OptionSpec{"irradiance", OptionType::Float, "1", "3",
@@ -315,7 +325,7 @@ commands()
                 kMaxMemory,
                 {"output-name", OptionType::String, "mean_intensity", "scatter",
                     "name of the output grid (e.g. `scatter` for Houdini volume shaders)"},
-                kOverwrite, kQuiet},
+                kVerbose, kOverwrite, kQuiet},
             {"vdbrad make cumulus - | vdbrad solve-cloud - lit.vdb --sun 40,0",
                 "vdbrad make cornell --tau 1 - | vdbrad solve-cloud - foggy.vdb --irradiance 0",
                 "vdbrad solve-cloud slab.vdb out.vdb --periodic --sun 60,0 --albedo 0"},
@@ -358,6 +368,7 @@ commands()
                     "linear RGB seen where rays hit nothing"},
                 OptionSpec{"extinction-scale", OptionType::Float, "1", "10",
                     "clouds: multiplies the density grid, as for the cloud solve"}.above(0),
+                kDensity,
                 {"cloud-source", OptionType::String, "mean_intensity", "scatter",
                     "clouds: the grid of mean radiance J; the source is albedo x J"},
                 kOverwrite, kQuiet}),

@@ -106,6 +106,21 @@ warn(const std::string& label, const std::string& what)
     std::cerr << "vdbrad: warning: " << label << ": " << what << "\n";
 }
 
+void
+describeReading(const Arguments& a, const std::string& label, const VdbFile& file,
+    const std::string& surface, const std::string& density)
+{
+    if (!a.flag("verbose") || Distribution::world().rank() != 0) return;
+    // The builders meet the same grids next and report any error; here only what went right.
+    std::vector<std::string> notes;
+    try {
+        notes = identifyRoles(file.grids, surface, density).notes;
+    } catch (const std::exception&) {
+        return;
+    }
+    for (const std::string& n : notes) std::cerr << "vdbrad: " << label << ": " << n << "\n";
+}
+
 std::vector<double>
 numberList(const Arguments& a, const char* option, size_t count, const char* shape)
 {

@@ -45,6 +45,11 @@ void writeOutput(const VdbFile& file, const std::string& path);
 /// A warning line on stderr, naming what it is about.
 void warn(const std::string& label, const std::string& what);
 
+/// @brief With --verbose, a line on stderr for each grid of @a file the scene contract read other
+/// than as written (GridRoles::notes: double as float, `Cd` as the albedo, half storage).
+void describeReading(const Arguments& a, const std::string& label, const VdbFile& file,
+    const std::string& surface, const std::string& density);
+
 /// Runs @a f, turning library errors into one user line naming @a label.
 template<typename F>
 auto

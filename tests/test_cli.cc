@@ -1063,3 +1063,106 @@ TEST_F(CliTest, GlossyCornellBoxGoesFromMeshToHighlights)
     EXPECT_EQ(both.errLines().size(), 1u) << both.err;
     EXPECT_FALSE(exists(path("y.vdb")));
 }
+
+// ---- meshes as tools write them (issue 27) ------------------------------------------------------
+
+namespace {
+
+// A Cornell box as the widely used public OBJ has it (decimetres): floor, ceiling and a light
+// quad of 1.3 x 1.05 facing down 1 cm under the ceiling, Ke above 1, one object each.
+std::string
+cornellWithLight(const std::string& mtllib)
+{
+    return "mtllib " + mtllib + "\n"
+        "v 0 0 0\nv 0 0 5.592\nv 5.56 0 5.592\nv 5.56 0 0\n"
+        "v 0 5.488 0\nv 5.56 5.488 0\nv 5.56 5.488 5.592\nv 0 5.488 5.592\n"
+        "v 2.13 5.478 2.27\nv 3.43 5.478 2.27\nv 3.43 5.478 3.32\nv 2.13 5.478 3.32\n"
+        "o floor\nusemtl white\nf 1 2 3 4\no ceiling\nf 5 6 7 8\n"
+        "o light\nusemtl light\nf 9 10 11 12\n";
+}
+
+} // namespace
+
+TEST_F(CliTest, VoxelizeFindsOrDoesWithoutTheMtlAndKeepsTheLight)
+{
+    writeText("cornell.mtl", "newmtl white\nKd 0.73 0.73 0.73\n"
+                             "newmtl light\nKd 0.78 0.78 0.78\nKe 17 12 4\n");
+    // `mtllib` with a folder that is not there: found by its file name, one warning line; the
+    // light keeps its voxels at the resolutions where the ceiling used to take them.
+    writeText("box.obj", cornellWithLight("CornellBox/cornell.mtl"));
+    for (const char* res : {"96", "128"}) {
+        const Result r = sh(std::string("vdbrad voxelize box.obj box.vdb --overwrite --quiet --res ")
+            + res);
+        ASSERT_EQ(r.status, 0) << r.err;
+        EXPECT_EQ(r.err, "vdbrad: warning: box.obj:1: material library 'CornellBox/cornell.mtl' "
+                         "not found as written; using 'cornell.mtl' beside the OBJ\n") << res;
+        const VdbFile f = readVdbFile(path("box.vdb"));
+        const auto emission = findGrid(f.grids, "emission");
+        ASSERT_TRUE(emission) << res;
+        EXPECT_GT(emission->activeVoxelCount(), 300u) << res;
+    }
+    // No MTL at all: a warning, default materials, and the scene is dark (said too).
+    writeText("nomtl.obj", cornellWithLight("missing.mtl"));
+    const Result dark = sh("vdbrad voxelize nomtl.obj dark.vdb --res 32 --quiet");
+    ASSERT_EQ(dark.status, 0) << dark.err;
+    EXPECT_EQ(dark.errLines(), (std::vector<std::string>{
+        "vdbrad: warning: nomtl.obj:1: material library 'missing.mtl' not found: its materials "
+        "get albedo 0.5 and no emission",
+        "vdbrad: warning: nomtl.obj: nothing emits (no MTL material with Ke > 0): the scene will "
+        "be dark"}));
+    const VdbFile d = readVdbFile(path("dark.vdb"));
+    const auto albedo = openvdb::gridConstPtrCast<openvdb::FloatGrid>(findGrid(d.grids, "albedo"));
+    ASSERT_TRUE(albedo);
+    EXPECT_EQ(albedo->tree().getValue(albedo->cbeginValueOn().getCoord()), 0.5f);
+    // `material_id` (objects in order of their first face, names in metadata) goes through a
+    // solve untouched.
+    ASSERT_EQ(sh("vdbrad voxelize box.obj lamp.vdb --res 24 --quiet").status, 0);
+    const Result solved = sh("vdbrad solve lamp.vdb lit.vdb --directions 40 --iterations 2 --quiet");
+    ASSERT_EQ(solved.status, 0) << solved.err;
+    const VdbFile lit = readVdbFile(path("lit.vdb"));
+    const auto ids = openvdb::gridConstPtrCast<openvdb::Int32Grid>(findGrid(lit.grids,
+        "material_id"));
+    ASSERT_TRUE(ids);
+    for (const auto& [id, name] : {std::pair{0, "floor"}, {1, "ceiling"}, {2, "light"}}) {
+        const auto meta = (*ids)["vdbrad:material_name:" + std::to_string(id)];
+        ASSERT_TRUE(meta) << id;
+        EXPECT_EQ(meta->str(), name);
+    }
+    EXPECT_EQ(ids->activeVoxelCount(), findGrid(lit.grids, "radiosity")->activeVoxelCount());
+}
+
+TEST_F(CliTest, VoxelizeRefusalsAreOneLineAndWriteNothing)
+{
+    writeText("ok.mtl", "newmtl white\nKd 0.7\n");
+    writeText("neg.mtl", "newmtl lamp\nKe 1 -2 0\n");
+    const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    const std::string plyHeader = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+        "property float y\nproperty float z\nelement face 1\n"
+        "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+    const std::vector<std::tuple<std::string, std::string, std::string>> cases = {
+        {"range.obj", tri + "f 1 2 9\n", "range.obj:4: face index 9 out of range [1, 3]"},
+        {"unknown.obj", "mtllib ok.mtl\n" + tri + "usemtl blue\nf 1 2 3\n",
+            "unknown.obj:5: unknown material 'blue' (not in the mtllib files)"},
+        {"negative.obj", "mtllib neg.mtl\n" + tri + "f 1 2 3\n",
+            "neg.mtl:2: Ke value -2 is negative"},
+        {"flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
+            "flat.obj: the mesh has no triangle of non-zero area"},
+        {"two.ply", plyHeader + "2 0 1\n", "two.ply:13: face 0 has 2 vertices (at least 3 "
+            "needed)"},
+        {"index.ply", plyHeader + "4 0 1 2 7\n", "index.ply:13: face 0: vertex index 7 out of "
+            "range [0, 2]"},
+    };
+    for (const auto& [name, text, message] : cases) {
+        writeText(name, text);
+        const Result r = sh("vdbrad voxelize " + name + " out.vdb --res 16 --quiet");
+        EXPECT_EQ(r.status, 1) << name;
+        ASSERT_EQ(r.errLines().size(), 1u) << r.err;
+        EXPECT_EQ(r.errLines()[0].rfind("vdbrad: error: ", 0), 0u) << r.err;
+        EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+        EXPECT_FALSE(exists(path("out.vdb"))) << name;
+    }
+    const Result missing = sh("vdbrad voxelize nothere.obj out.vdb --res 16");
+    EXPECT_EQ(missing.status, 1);
+    EXPECT_EQ(missing.errLines().size(), 1u) << missing.err;
+    EXPECT_FALSE(exists(path("out.vdb")));
+}

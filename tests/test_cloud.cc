@@ -1059,3 +1059,53 @@ TEST_F(CloudTest, StateOverAGroundRestoresTheSameSolve)
     EXPECT_EQ(resumed.groundIrradiance(), full.groundIrradiance());
     EXPECT_EQ(resumed.meanIntensity(), full.meanIntensity());
 }
+
+// An RGB single-scattering albedo (Houdini's `Cd`, Blender's `color` on smoke) is three grey
+// problems: light of each colour travels alone. Each channel of the RGB solve must be the grey
+// solve of that channel's albedo, bit for bit, with the colours' budgets as metadata.
+TEST_F(CloudTest, RgbAlbedoIsSolvedChannelByChannel)
+{
+    auto density = openvdb::FloatGrid::create(0.f);
+    density->setName("density");
+    density->setTransform(openvdb::math::Transform::createLinearTransform(0.2));
+    auto rgb = openvdb::Vec3SGrid::create();
+    rgb->setName("albedo");
+    rgb->setTransform(density->transform().copy());
+    for (int x = 0; x < 9; ++x) {
+        for (int y = 0; y < 8; ++y) {
+            for (int z = 0; z < 7; ++z) {
+                density->tree().setValueOn({x, y, z}, 0.5f + float((x + 2 * y + z) % 5));
+                rgb->tree().setValueOn({x, y, z},
+                    openvdb::Vec3f(0.99f, 0.6f + 0.05f * float(x % 3), 0.2f));
+            }
+        }
+    }
+    CloudTransferOptions o;
+    o.directions = 50;
+    o.sunZenith = 40.0;
+    o.tolerance = 1e-7;
+    const Cloud cloud = buildCloud({density, rgb});
+    ASSERT_TRUE(cloud.albedo().isRgb());
+    const auto J = openvdb::gridPtrCast<openvdb::Vec3SGrid>(solveCloud(cloud, o));
+    ASSERT_TRUE(J);
+    const auto reflected = J->metaValue<openvdb::Vec3f>("vdbrad:albedo");
+    for (int c = 0; c < 3; ++c) {
+        auto grey = openvdb::FloatGrid::create(0.f);
+        grey->setName("albedo");
+        grey->setTransform(density->transform().copy());
+        for (auto it = rgb->cbeginValueOn(); it; ++it) {
+            grey->tree().setValueOn(it.getCoord(), (*it)[c]);
+        }
+        const auto j = openvdb::gridPtrCast<openvdb::FloatGrid>(
+            solveCloud(buildCloud({density, grey}), o));
+        ASSERT_TRUE(j);
+        size_t voxels = 0;
+        for (auto it = j->cbeginValueOn(); it; ++it, ++voxels) {
+            ASSERT_EQ(J->tree().getValue(it.getCoord())[c], *it) << c << " " << it.getCoord();
+        }
+        EXPECT_EQ(voxels, 504u);
+        EXPECT_EQ(reflected[c], j->metaValue<float>("vdbrad:albedo"));
+    }
+    // Whiter scatters more: the red channel (0.99) reflects more than the blue (0.2).
+    EXPECT_GT(reflected[0], 2.f * reflected[2]);
+}

@@ -274,7 +274,7 @@ TEST_F(FogSurfacesTest, RefusesWhatItCannotSolve)
     const Cloud shifted = fog(*openvdb::math::Transform::createLinearTransform(0.5),
         openvdb::CoordBBox(Coord(1), Coord(6)), 1.0, 1.f);
     EXPECT_THROW(CloudTransfer(shifted, o), openvdb::ValueError);
-    o.surfaceChannel = 1;   // a grey scene has one channel
+    o.channel = 1;   // a grey scene has one channel
     EXPECT_THROW(CloudTransfer(f.cloud, o), openvdb::ValueError);
 }
 // The closed sphere (grids::makeFurnaceSphere: curved walls, staircase normals) filled with a

@@ -1,4 +1,7 @@
-// GridIO: whole-file reads from memory, errors on malformed bytes, atomic writes, round trips.
+// GridIO: whole-file reads from memory, errors on malformed bytes, atomic writes, round trips;
+// files as other tools write them (double, half and Vec3d grids, Houdini and Blender names).
+#include "ToolTest.h"
+
 #include "vdbrad/CrashGuard.h"
 #include "vdbrad/vdbrad.h"
 
@@ -209,4 +212,260 @@ TEST_F(GridIOTest, WithGridsReplacesByNameAndKeepsTheRest)
     EXPECT_EQ(out.grids[0], in.grids[0]);
     EXPECT_EQ(out.grids[3], added);
     EXPECT_EQ(out.metadata->metaValue<std::string>("creator"), "Houdini 20.0");
+}
+
+
+// ---- files as other tools write them ------------------------------------------------------------
+
+namespace {
+
+class ForeignGridsTest : public test::ToolTest
+{
+protected:
+    // A small fog volume: densities k / 8 (exact in half, float and double), an RGB albedo.
+    static openvdb::FloatGrid::Ptr fog()
+    {
+        auto d = openvdb::FloatGrid::create(0.f);
+        d->setName("density");
+        d->setGridClass(openvdb::GRID_FOG_VOLUME);
+        d->setTransform(openvdb::math::Transform::createLinearTransform(0.5));
+        for (int x = 0; x < 10; ++x) {
+            for (int y = 0; y < 10; ++y) {
+                for (int z = 0; z < 10; ++z) {
+                    d->tree().setValueOn({x, y, z}, float(1 + (x * 7 + y * 3 + z) % 13) / 8.f);
+                }
+            }
+        }
+        return d;
+    }
+
+    // @a from in double precision, every value, active or not (OpenVDB's value-converting tree
+    // copy for scalars; vectors one voxel at a time).
+    static openvdb::DoubleGrid::Ptr doubled(const openvdb::FloatGrid& from, const std::string& name)
+    {
+        auto to = openvdb::DoubleGrid::create(std::make_shared<openvdb::DoubleTree>(from.tree()));
+        to->setName(name);
+        to->setGridClass(from.getGridClass());
+        to->setTransform(from.transform().copy());
+        return to;
+    }
+    static openvdb::Vec3DGrid::Ptr doubled(const openvdb::Vec3SGrid& from, const std::string& name)
+    {
+        auto to = openvdb::Vec3DGrid::create(openvdb::Vec3d(from.background()));
+        to->setName(name);
+        to->setTransform(from.transform().copy());
+        for (auto it = from.cbeginValueOn(); it; ++it) {
+            to->tree().setValueOn(it.getCoord(), openvdb::Vec3d(*it));
+        }
+        return to;
+    }
+
+    static openvdb::Vec3SGrid::Ptr colour(const openvdb::FloatGrid& ref, const std::string& name)
+    {
+        auto c = openvdb::Vec3SGrid::create();
+        c->setName(name);
+        c->setTransform(ref.transform().copy());
+        for (auto it = ref.cbeginValueOn(); it; ++it) {
+            const openvdb::Coord p = it.getCoord();
+            c->tree().setValueOn(p, openvdb::Vec3f(0.875f, 0.5f + 0.0625f * float(p.x() % 4),
+                0.75f));
+        }
+        return c;
+    }
+
+    void write(const std::string& name, const openvdb::GridPtrVec& grids) const
+    {
+        VdbFile f;
+        f.grids = grids;
+        writeVdbFile(f, path(name));
+    }
+
+    // Every value of grid @a name in @a file, as RGB, in the order of the active voxels.
+    std::vector<openvdb::Vec3f> values(const std::string& file, const std::string& name) const
+    {
+        const VdbFile f = readVdbFile(path(file));
+        const auto g = findGrid(f.grids, name);
+        std::vector<openvdb::Vec3f> v;
+        if (!g) return v;
+        if (auto s = openvdb::gridConstPtrCast<openvdb::FloatGrid>(g)) {
+            for (auto it = s->cbeginValueOn(); it; ++it) v.emplace_back(*it);
+        } else if (auto c = openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(g)) {
+            for (auto it = c->cbeginValueOn(); it; ++it) v.push_back(*it);
+        }
+        return v;
+    }
+
+    // The one error line of a failed command, which wrote nothing.
+    void expectRefused(const test::ToolResult& r, const std::string& what) const
+    {
+        EXPECT_EQ(r.status, 1) << r.err;
+        ASSERT_EQ(r.errLines().size(), 1u) << r.err;
+        EXPECT_EQ(r.errLines()[0].rfind("vdbrad: error: ", 0), 0u) << r.err;
+        EXPECT_NE(r.err.find(what), std::string::npos) << r.err;
+        EXPECT_FALSE(test::exists(path("out.vdb")));
+    }
+
+    const std::string mOptions = " --directions 40 --sun 30,20 --tolerance 1e-6 --quiet";
+};
+
+} // namespace
+
+// A simulator's double density and a half-precision file hold the float file's values (k / 8 is
+// exact in all three): the solve must give its answer bit for bit. Houdini's `Cd` and Blender's
+// `color` are the albedo when there is no `albedo` grid, Vec3d as well as Vec3f.
+TEST_F(ForeignGridsTest, DoubleAndHalfFogVolumesSolveToTheFloatFilesAnswer)
+{
+    const auto density = fog();
+    const auto albedo = colour(*density, "albedo");
+    write("float.vdb", {density, albedo});
+    write("double.vdb", {doubled(*density, "density"),
+        doubled(*albedo, "Cd")});
+    auto half = density->deepCopy();
+    half->setSaveFloatAsHalf(true);
+    auto halfAlbedo = colour(*density, "color");
+    halfAlbedo->setSaveFloatAsHalf(true);
+    write("half.vdb", {half, halfAlbedo});
+    EXPECT_TRUE(readVdbFile(path("half.vdb")).grids[0]->saveFloatAsHalf());
+
+    ASSERT_EQ(sh("vdbrad solve-cloud float.vdb float_out.vdb" + mOptions).status, 0);
+    const auto reference = values("float_out.vdb", "mean_intensity");
+    ASSERT_EQ(reference.size(), 1000u);
+    float lo = 1e30f, hi = 0.f;
+    for (const auto& v : reference) { lo = std::min(lo, v[1]); hi = std::max(hi, v[1]); }
+    EXPECT_GT(lo, 0.f);
+    EXPECT_LT(lo, 0.9f * hi);   // a real solve: the light varies through the cloud
+
+    for (const std::string in : {"double", "half"}) {
+        SCOPED_TRACE(in);
+        const auto r = sh("vdbrad solve-cloud " + in + ".vdb " + in + "_out.vdb"
+            + mOptions + " --verbose");
+        ASSERT_EQ(r.status, 0) << r.err;
+        EXPECT_EQ(values(in + "_out.vdb", "mean_intensity"), reference);
+        if (in == "double") {
+            EXPECT_NE(r.err.find("grid 'density': double values read as float"),
+                std::string::npos) << r.err;
+            EXPECT_NE(r.err.find("grid 'Cd' taken as the albedo"), std::string::npos) << r.err;
+            EXPECT_NE(r.err.find("grid 'Cd': vec3d values read as vec3s"), std::string::npos)
+                << r.err;
+            // The input's grids pass through at their own precision.
+            const VdbFile out = readVdbFile(path("double_out.vdb"));
+            EXPECT_TRUE(findGrid(out.grids, "density")->isType<openvdb::DoubleGrid>());
+            EXPECT_TRUE(findGrid(out.grids, "Cd")->isType<openvdb::Vec3DGrid>());
+        } else {
+            EXPECT_NE(r.err.find("grid 'density': stored as half floats"), std::string::npos)
+                << r.err;
+            EXPECT_NE(r.err.find("grid 'color' taken as the albedo"), std::string::npos) << r.err;
+        }
+    }
+    // Without --verbose nothing is said.
+    const auto quiet = sh("vdbrad solve-cloud double.vdb q.vdb" + mOptions);
+    EXPECT_EQ(quiet.status, 0);
+    EXPECT_EQ(quiet.err, "");
+}
+
+// A double level set (or Vec3d normals) gives the float file's scene: same voxels, same bits.
+TEST_F(ForeignGridsTest, DoubleLevelSetsAndVec3dNormalsGiveTheFloatScene)
+{
+    auto ls = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(2.f, {0, 0, 0}, 0.25f);
+    ls->setName("surface");
+    auto emission = openvdb::FloatGrid::create(0.f);
+    emission->setName("emission");
+    emission->setTransform(ls->transform().copy());
+    for (int x = -9; x <= 9; ++x) {
+        for (int y = 5; y <= 9; ++y) {
+            for (int z = -9; z <= 9; ++z) emission->tree().setValueOn({x, y, z}, 2.f);
+        }
+    }
+    write("float.vdb", {ls, emission});
+    write("double.vdb", {doubled(*ls, "surface"), emission});
+    const std::string opts = " --directions 40 --quiet";
+    ASSERT_EQ(sh("vdbrad solve float.vdb float_out.vdb" + opts).status, 0);
+    const auto r = sh("vdbrad solve double.vdb double_out.vdb --verbose" + opts);
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find("grid 'surface': double values read as float"), std::string::npos);
+    const auto reference = values("float_out.vdb", "radiosity");
+    ASSERT_GT(reference.size(), 500u);
+    EXPECT_EQ(values("double_out.vdb", "radiosity"), reference);
+
+    // Normal grids: `vdbrad surface` writes the float scene; its normals as Vec3d solve alike.
+    ASSERT_EQ(sh("vdbrad surface float.vdb voxels.vdb --quiet").status, 0);
+    VdbFile voxels = readVdbFile(path("voxels.vdb"));
+    for (auto& g : voxels.grids) {
+        if (g->getName() == "normal") {
+            g = doubled(*openvdb::gridPtrCast<openvdb::Vec3SGrid>(g), "normal");
+        }
+    }
+    writeVdbFile(voxels, path("voxels_d.vdb"));
+    ASSERT_EQ(sh("vdbrad solve voxels.vdb voxels_out.vdb" + opts).status, 0);
+    ASSERT_EQ(sh("vdbrad solve voxels_d.vdb voxels_d_out.vdb" + opts).status, 0);
+    EXPECT_EQ(values("voxels_d_out.vdb", "radiosity"), values("voxels_out.vdb", "radiosity"));
+    // `info` says how it read them.
+    const auto info = sh("vdbrad info voxels_d.vdb");
+    EXPECT_EQ(info.status, 0) << info.err;
+    EXPECT_NE(info.out.find("read:      grid 'normal': vec3d values read as vec3s"),
+        std::string::npos) << info.out;
+}
+
+// Simulators name their fields freely: --density picks one, and without it the error names the
+// fog volumes there are. A fog volume stored as active tiles is the same medium as its voxels.
+TEST_F(ForeignGridsTest, DensityByNameAndFogVolumesStoredAsTiles)
+{
+    auto smoke = fog();
+    smoke->setName("smoke");
+    write("smoke.vdb", {smoke});
+    expectRefused(sh("vdbrad solve-cloud smoke.vdb out.vdb" + mOptions),
+        "no cloud: expected a float grid named 'density' (the file's fog volumes: 'smoke'; "
+        "choose one with --density NAME)");
+    const auto info = sh("vdbrad info smoke.vdb --density smoke");
+    EXPECT_EQ(info.status, 0) << info.err;
+    EXPECT_NE(info.out.find("1,000 medium voxels from 'smoke'"), std::string::npos) << info.out;
+    ASSERT_EQ(sh("vdbrad solve-cloud smoke.vdb out.vdb --density smoke" + mOptions).status, 0);
+    EXPECT_EQ(values("out.vdb", "mean_intensity").size(), 1000u);
+
+    // Two 8^3 tiles of density 0.5 beside each other, against the same voxels one by one.
+    auto tiles = openvdb::FloatGrid::create(0.f);
+    tiles->setName("density");
+    tiles->setTransform(openvdb::math::Transform::createLinearTransform(0.25));
+    tiles->tree().addTile(1, openvdb::Coord(0, 0, 0), 0.5f, true);
+    tiles->tree().addTile(1, openvdb::Coord(8, 0, 0), 0.5f, true);
+    EXPECT_EQ(tiles->tree().leafCount(), 0u);
+    auto dense = tiles->deepCopy();
+    dense->tree().voxelizeActiveTiles();
+    write("tiles.vdb", {tiles});
+    write("dense.vdb", {dense});
+    ASSERT_EQ(sh("vdbrad solve-cloud tiles.vdb t.vdb --directions 40 --quiet").status, 0);
+    ASSERT_EQ(sh("vdbrad solve-cloud dense.vdb d.vdb --directions 40 --quiet").status, 0);
+    const auto t = values("t.vdb", "mean_intensity");
+    EXPECT_EQ(t.size(), 1024u);
+    EXPECT_EQ(t, values("d.vdb", "mean_intensity"));
+}
+
+// What the solvers cannot take is one line naming the grid, exit 1, no output.
+TEST_F(ForeignGridsTest, UnusableGridsAreRefusedInOneLine)
+{
+    auto stretched = fog();
+    openvdb::math::Mat4d scale = openvdb::math::Mat4d::identity();
+    scale.preScale(openvdb::Vec3d(0.5, 0.5, 1.0));
+    stretched->setTransform(openvdb::math::Transform::createLinearTransform(scale));
+    write("stretched.vdb", {stretched});
+    expectRefused(sh("vdbrad solve-cloud stretched.vdb out.vdb" + mOptions),
+        "grid 'density' has non-cubic voxels");
+
+    auto huge = doubled(*fog(), "density");
+    huge->tree().setValueOn({3, 4, 5}, 1e300);
+    write("huge.vdb", {huge});
+    expectRefused(sh("vdbrad solve-cloud huge.vdb out.vdb" + mOptions),
+        "grid 'density' holds 1e+300 at (3, 4, 5), beyond single precision");
+
+    auto ints = openvdb::Int32Grid::create(0);
+    ints->setName("density");
+    ints->tree().setValueOn({0, 0, 0}, 1);
+    write("ints.vdb", {ints});
+    expectRefused(sh("vdbrad solve-cloud ints.vdb out.vdb" + mOptions),
+        "grid 'density' (density) has type int32, expected float or double");
+
+    auto bright = fog();
+    write("bright.vdb", {bright, test::like<openvdb::Vec3DGrid>(*bright, "Cd",
+        openvdb::Vec3d(0.5, 1.5, 0.5))});
+    expectRefused(sh("vdbrad solve-cloud bright.vdb out.vdb" + mOptions), "albedo");
 }

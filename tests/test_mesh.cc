@@ -7,8 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -426,14 +428,125 @@ TEST(ObjTest, BadMaterialValuesNameFileLineAndValue)
     expectThrowWith<openvdb::ValueError>([&] { readObj(s); }, "got 'xyz'");
 }
 
-TEST(ObjTest, MissingFilesAreIoErrors)
+TEST(ObjTest, MissingObjIsAnIoErrorMissingMtlAWarning)
 {
     expectThrowWith<openvdb::IoError>([] { readObj(path("does_not_exist.obj")); },
         "does_not_exist.obj");
-    const std::string p = write("nomtl.obj", "mtllib missing.mtl\nv 0 0 0\n");
-    expectThrowWith<openvdb::IoError>([&] { readObj(p); },
-        p + ":1: material library '" + ::testing::TempDir() + "missing.mtl': cannot open: No such");
     expectThrowWith<openvdb::IoError>([] { readObj(::testing::TempDir()); }, "directory");
+    // As Blender: the mesh loads, its usemtl names become plain materials (albedo 0.5, no
+    // emission), one warning naming the library.
+    const std::string p = write("nomtl.obj", "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+        "usemtl light\nf 1 2 3\nusemtl wall\nf 1 3 2\nusemtl light\nf 2 3 1\n");
+    const TriangleMesh m = readObj(p);
+    EXPECT_EQ(m.warnings, std::vector<std::string>{p + ":1: material library 'missing.mtl' not "
+        "found: its materials get albedo 0.5 and no emission"});
+    ASSERT_EQ(m.materials.size(), 2u);
+    EXPECT_EQ(m.materials[0].name, "light");
+    EXPECT_EQ(m.materials[1].name, "wall");
+    for (const Material& mat : m.materials) {
+        EXPECT_EQ(mat.albedo, Vec3f(0.5f));
+        EXPECT_EQ(mat.emission, Vec3f(0.f));
+    }
+    EXPECT_EQ(m.triangleMaterials, (std::vector<int32_t>{0, 1, 0}));
+    // Another library on the line is still read; a name it lacks is then a plain material too.
+    write("present.mtl", "newmtl wall\nKd 0.25\n");
+    const TriangleMesh both = readObj(write("halfmtl.obj",
+        "mtllib vdbrad_mesh_present.mtl gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+        "usemtl wall\nf 1 2 3\nusemtl light\nf 1 3 2\n"));
+    EXPECT_EQ(both.warnings.size(), 1u);
+    ASSERT_EQ(both.materials.size(), 2u);
+    EXPECT_EQ(both.materials[0].albedo, Vec3f(0.25f));
+    EXPECT_EQ(both.materials[1].name, "light");
+}
+
+TEST(ObjTest, MtllibIsFoundAsWrittenThenByItsFileName)
+{
+    const std::string dir = ::testing::TempDir() + "vdbrad_mesh_mtllib";
+    ASSERT_EQ(std::system(("rm -rf '" + dir + "' && mkdir -p '" + dir + "/mat'").c_str()), 0);
+    std::ofstream(dir + "/mat/a.mtl") << "newmtl red\nKd 1 0 0\n";
+    std::ofstream(dir + "/b.mtl") << "newmtl lamp\nKe 17 12 4\n";
+    const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    auto obj = [&](const std::string& name, const std::string& text) {
+        const std::string p = dir + "/" + name;
+        std::ofstream(p) << text;
+        return p;
+    };
+    // As written (a sub-folder; Windows backslashes): no warning.
+    for (const char* lib : {"mat/a.mtl", ".\\mat\\a.mtl"}) {
+        const TriangleMesh m = readObj(obj("written.obj", std::string("mtllib ") + lib + "\n"
+            + tri + "usemtl red\nf 1 2 3\n"));
+        EXPECT_TRUE(m.warnings.empty()) << lib;
+        EXPECT_EQ(m.materials.at(0).albedo, Vec3f(1, 0, 0)) << lib;
+    }
+    // A folder that is not there (relative, absolute, Windows drive): the file name in the
+    // OBJ's folder, one warning per library however often it is named. Ke above 1 is kept.
+    for (const std::string lib : {"CornellBox/b.mtl", "/home/someone/scenes/b.mtl",
+             "C:\\Users\\someone\\b.mtl"}) {
+        const std::string p = obj("byname.obj", "mtllib " + lib + "\n" + tri
+            + "usemtl lamp\nf 1 2 3\nmtllib " + lib + "\n");
+        const TriangleMesh m = readObj(p);
+        EXPECT_EQ(m.warnings, std::vector<std::string>{p + ":1: material library '" + lib
+            + "' not found as written; using 'b.mtl' beside the OBJ"});
+        ASSERT_EQ(m.materials.size(), 1u);
+        EXPECT_EQ(m.materials[0].emission, Vec3f(17, 12, 4));
+    }
+    // A name with spaces is taken whole when such a file exists, by its file name too.
+    std::ofstream(dir + "/my room.mtl") << "newmtl red\nKd 1 0 0\n";
+    const TriangleMesh spaced = readObj(obj("spaced.obj",
+        "mtllib exports/my room.mtl\n" + tri + "usemtl red\nf 1 2 3\n"));
+    EXPECT_EQ(spaced.warnings.size(), 1u);
+    EXPECT_EQ(spaced.materials.size(), 1u);
+}
+
+TEST(ObjTest, ObjectsAndGroupsAreNumberedByTheirFirstFace)
+{
+    // `o` and `g` both name the faces that follow; faces before either are in "default"; ids
+    // count from 0 in order of each name's first face; a name seen again keeps its id; a name
+    // with no face gets none.
+    const TriangleMesh m = readObj(write("groups.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\n"
+        "o Light Panel\nf 1 2 4\ng unused\no walls\nf 2 4 3 1\n"
+        "g\nf 1 3 2\no Light Panel\nf 3 2 1\n"));
+    EXPECT_EQ(m.groups, (std::vector<std::string>{"default", "Light Panel", "walls"}));
+    EXPECT_EQ(m.triangleGroups, (std::vector<int32_t>{0, 1, 2, 2, 0, 1}));
+    // No `o` or `g`: no groups at all.
+    const TriangleMesh plain = readObj(write("nogroups.obj", cubeObj()));
+    EXPECT_FALSE(plain.hasGroups());
+    EXPECT_TRUE(plain.triangleGroups.empty());
+}
+
+TEST(ObjTest, ConcavePolygonsAreEarClippedConvexOnesFanned)
+{
+    // An L-shaped floor (area 3) as one hexagon from the corner (2, 0): its fan would lay a
+    // backwards triangle over the missing square. Ear clipping gives 4 triangles, all facing
+    // +z, covering the L exactly.
+    const TriangleMesh m = readObj(write("ell.obj",
+        "v 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\no floor\nf 1 2 3 4 5 6\n"));
+    ASSERT_EQ(m.triangles.size(), 4u);
+    double area = 0.0;
+    for (size_t t = 0; t < 4; ++t) {
+        const Vec3d n = normalOf(m, t);
+        EXPECT_GE(n.z(), 0.0) << t;
+        EXPECT_EQ(n.x(), 0.0);
+        EXPECT_EQ(n.y(), 0.0);
+        area += 0.5 * n.z();
+        // Inside the L: no centroid in the missing square [1, 2]^2.
+        const Vec3d c = (Vec3d(m.points[m.triangles[t][0]]) + Vec3d(m.points[m.triangles[t][1]])
+            + Vec3d(m.points[m.triangles[t][2]])) / 3.0;
+        EXPECT_FALSE(c.x() > 1.0 && c.y() > 1.0) << t;
+    }
+    EXPECT_DOUBLE_EQ(area, 3.0);
+    EXPECT_EQ(m.triangleGroups, (std::vector<int32_t>(4, 0)));
+    // A dart (arrowhead quad, area 1.5) whose fan diagonal runs outside it, wound either way:
+    // 2 triangles of the quad's orientation and area.
+    for (const char* f : {"f 1 2 3 4\n", "f 1 4 3 2\n"}) {
+        const TriangleMesh dart = readObj(write("dart.obj",
+            std::string("v -1 -1 0\nv 0 0.5 0\nv 1 -1 0\nv 0 2 0\n") + f));
+        ASSERT_EQ(dart.triangles.size(), 2u);
+        const double sign = f[4] == '2' ? 1.0 : -1.0;   // 1 2 3 4 runs counter-clockwise
+        EXPECT_GE(sign * normalOf(dart, 1).z(), 0.0);
+        EXPECT_DOUBLE_EQ(0.5 * sign * (normalOf(dart, 0).z() + normalOf(dart, 1).z()), 1.5);
+    }
 }
 
 // ---- PLY ---------------------------------------------------------------------------------------
@@ -505,6 +618,70 @@ TEST(PlyTest, FaceColoursInFloatAreUsedAsIs)
     EXPECT_EQ(m.materials[0].albedo, Vec3f(0.25f, 0.5f, 1.f));
     EXPECT_EQ(m.materials[0].name, "rgb(63.75,127.5,255)");
     EXPECT_EQ(m.triangleMaterials, (std::vector<int32_t>{0, 0}));
+}
+
+TEST(PlyTest, PolygonsAreTriangulatedAsInObjFiles)
+{
+    // The L-shaped hexagon and a convex pentagon, faces before vertices (legal PLY), ascii and
+    // binary: the triangles of the OBJ reader, the L ear-clipped, the pentagon fanned, with
+    // per-face colours kept on each polygon's triangles.
+    const char* const corners[] = {"2 0 0", "2 1 0", "1 1 0", "1 2 0", "0 2 0", "0 0 0",
+        "3 0 0", "5 0 0", "6 1 0", "4 2 0", "2 1 1"};
+    const std::vector<std::vector<int>> faces = {{0, 1, 2, 3, 4, 5}, {6, 7, 8, 9, 10}};
+    std::ostringstream obj;
+    for (const char* c : corners) obj << "v " << c << "\n";
+    for (const auto& f : faces) {
+        obj << "f";
+        for (int k : f) obj << " " << k + 1;
+        obj << "\n";
+    }
+    const TriangleMesh ref = readObj(write("polys.obj", obj.str()));
+    ASSERT_EQ(ref.triangles.size(), 7u);
+    EXPECT_EQ(ref.triangles[4], Vec3I(6, 7, 8));   // the pentagon's fan
+    std::ostringstream ascii;
+    const std::string header = std::string("element face 2\nproperty list uchar int vertex_indices\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\n")
+        + "element vertex 11\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    ascii << "ply\nformat ascii 1.0\n" << header;
+    Bytes b{true, "ply\nformat binary_big_endian 1.0\n" + header};
+    for (size_t i = 0; i < faces.size(); ++i) {
+        ascii << faces[i].size();
+        b.put(uint8_t(faces[i].size()));
+        for (int k : faces[i]) {
+            ascii << " " << k;
+            b.put(int32_t(k));
+        }
+        ascii << (i ? " 0 0 255\n" : " 255 0 0\n");
+        for (uint8_t c : i ? std::array<uint8_t, 3>{0, 0, 255} : std::array<uint8_t, 3>{255, 0, 0}) {
+            b.put(c);
+        }
+    }
+    for (const char* c : corners) {
+        ascii << c << "\n";
+        std::istringstream in(c);
+        float x, y, z;
+        in >> x >> y >> z;
+        b.put(x); b.put(y); b.put(z);
+    }
+    for (const std::string& data : {ascii.str(), b.data}) {
+        const TriangleMesh m = readPly(write("polys.ply", data));
+        ASSERT_EQ(m.triangles, ref.triangles);
+        EXPECT_EQ(m.triangleMaterials, (std::vector<int32_t>{0, 0, 0, 0, 1, 1, 1}));
+        EXPECT_EQ(m.points, ref.points);
+    }
+    // Degenerate and invalid faces: errors naming the face (and line, in ascii).
+    std::string two = ascii.str();
+    two.replace(two.find("6 0 1 2 3 4 5"), 13, "2 0 1");
+    expectThrowWith<openvdb::ValueError>([&] { readPly(write("twoface.ply", two)); },
+        ":13: face 0 has 2 vertices (at least 3 needed)");
+    std::string negative = ascii.str();
+    negative.replace(negative.find("5 6 7 8 9 10"), 12, "5 6 7 -8 9 10");
+    expectThrowWith<openvdb::ValueError>([&] { readPly(write("negface.ply", negative)); },
+        ":14: face 1: vertex index -8 out of range [0, 10]");
+    std::string fraction = ascii.str();
+    fraction.replace(fraction.find("list uchar int"), 14, "list uchar float");
+    expectThrowWith<openvdb::ValueError>([&] { readPly(write("fracface.ply", fraction)); },
+        ":3: face vertex indices are not of an integer type");
 }
 
 TEST(PlyTest, ColourOutsideItsRangeIsAValueError)

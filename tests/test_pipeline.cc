@@ -78,12 +78,10 @@ TEST_F(PipelineTest, VoxelizeErrorsGiveOneLineAndNoOutput)
     writeText("cube.obj", cubeObj(0.0));
     writeText("cube.mtl", kCubeMtl);
     writeText("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
-    writeText("nomtl.obj", "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
     struct Case { std::string args, message; int status; };
     const std::vector<Case> cases = {
         {"missing.obj out.vdb", "missing.obj", 1},
         {"bad.obj out.vdb", "bad.obj:4", 1},
-        {"nomtl.obj out.vdb", "missing.mtl", 1},
         {"cube.obj out.vdb --res 0", "--res must be in [1, 16384]", 2},
         {"cube.obj out.vdb --res 64 --voxel-size 0.1", "not both", 2},
         {"cube.obj out.vdb --separation 18", "--separation must be 6 or 26", 2},

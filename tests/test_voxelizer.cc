@@ -3,6 +3,7 @@
 // passes from inside to outside a closed mesh without meeting a surface voxel).
 #include "vdbrad/DirectionSet.h"
 #include "vdbrad/Emitters.h"
+#include "vdbrad/GridContract.h"
 #include "vdbrad/LinePartition.h"
 #include "vdbrad/RadiositySolver.h"
 #include "vdbrad/Scene.h"
@@ -14,8 +15,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <functional>
+#include <iostream>
 #include <random>
+#include <sstream>
 
 using namespace vdbrad;
 using openvdb::Coord;
@@ -544,6 +548,253 @@ TEST_F(VoxelizerTest, ClosedRoomKeepsItsLightInside)
     EXPECT_GT(outer, 3500u);
     EXPECT_GT(inner, 2500u);
     EXPECT_GE(lit, inner * 90 / 100);
+}
+
+// ---- lights as tools write them (issue 27) ------------------------------------------------------
+
+// The Cornell box as the widely used public OBJ has it, in decimetres: a room of 5.56 x 5.488 x
+// 5.592, open at z = 0, and a light quad of 1.3 x 1.05 facing down 1 cm (0.01) under the
+// ceiling, Ke 17 12 4 (radiosity: above 1). One object per surface; @a mtllib as written.
+constexpr double kRoomX = 5.56, kRoomY = 5.488, kRoomZ = 5.592, kLightY = kRoomY - 0.01;
+constexpr double kLightX0 = 2.13, kLightX1 = 3.43, kLightZ0 = 2.27, kLightZ1 = 3.32;
+const Vec3d kLightKe(17, 12, 4);
+
+std::string
+cornellObj(const std::string& mtllib)
+{
+    std::ostringstream os;
+    os << "# Cornell box: light 1 cm under the ceiling, facing down\nmtllib " << mtllib << "\n"
+       << "v 0 0 0\nv 0 0 5.592\nv 5.56 0 5.592\nv 5.56 0 0\n"                  // floor 1-4
+       << "v 0 5.488 0\nv 5.56 5.488 0\nv 5.56 5.488 5.592\nv 0 5.488 5.592\n"  // ceiling 5-8
+       << "v 2.13 5.478 2.27\nv 3.43 5.478 2.27\nv 3.43 5.478 3.32\nv 2.13 5.478 3.32\n"
+       << "o floor\nusemtl white\nf 1 2 3 4\n"
+       << "o ceiling\nf 5 6 7 8\n"
+       << "o back_wall\nf 2 8 7 3\n"
+       << "o left_wall\nusemtl red\nf 1 5 8 2\n"
+       << "o right_wall\nusemtl green\nf 4 3 7 6\n"
+       << "o light\nusemtl light\nf 9 10 11 12\n";
+    return os.str();
+}
+
+const char* const kCornellMtl =
+    "newmtl white\nKd 0.73 0.73 0.73\nnewmtl red\nKd 0.63 0.065 0.05\n"
+    "newmtl green\nKd 0.14 0.45 0.091\nnewmtl light\nKd 0.78 0.78 0.78\nKe 17 12 4\n";
+
+std::string
+writeFile(const std::string& name, const std::string& text)
+{
+    const std::string p = ::testing::TempDir() + "vdbrad_voxelizer_" + name;
+    std::ofstream(p, std::ios::binary) << text;
+    return p;
+}
+
+// Sum of emission x emission_area over the emitting voxels, per channel (world units).
+Vec3d
+voxelPower(const openvdb::GridPtrVec& grids)
+{
+    const auto area = openvdb::gridConstPtrCast<openvdb::FloatGrid>(
+        findGrid(grids, "emission_area"));
+    if (!area) return Vec3d(0.0);
+    Vec3d sum(0.0);
+    auto acc = area->getConstAccessor();
+    const auto emission = findGrid(grids, "emission");
+    if (const auto rgb = openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(emission)) {
+        for (auto it = rgb->cbeginValueOn(); it; ++it) {
+            sum += Vec3d(*it) * double(acc.getValue(it.getCoord()));
+        }
+    } else if (const auto grey = openvdb::gridConstPtrCast<openvdb::FloatGrid>(emission)) {
+        for (auto it = grey->cbeginValueOn(); it; ++it) {
+            sum += Vec3d(double(*it) * double(acc.getValue(it.getCoord())));
+        }
+    }
+    return sum;
+}
+
+double
+relativeError(const Vec3d& got, const Vec3d& want)
+{
+    double worst = 0.0;
+    for (int i = 0; i < 3; ++i) worst = std::max(worst, std::abs(got[i] / want[i] - 1.0));
+    return worst;
+}
+
+TEST_F(VoxelizerTest, LightUnderTheCeilingKeepsItsPowerAtEveryResolution)
+{
+    // The issue: at res 96 and 128 the light shared its voxels with the ceiling, the ceiling's
+    // material won, and nothing emitted. Here every resolution from 32 to 512 on the same voxel
+    // lattice as the whole room (voxel size = room / res), with the ceiling around the light
+    // (the rest of the room cannot reach the light's voxels).
+    TriangleMesh m;
+    m.materials = {{"white", Vec3f(0.73f), Vec3f(0.f)}, {"light", Vec3f(0.78f), Vec3f(kLightKe)}};
+    m.points = {Vec3f(1.5, kRoomY, 1.7), Vec3f(4.1, kRoomY, 1.7), Vec3f(4.1, kRoomY, 3.9),
+        Vec3f(1.5, kRoomY, 3.9), Vec3f(kLightX0, kLightY, kLightZ0),
+        Vec3f(kLightX1, kLightY, kLightZ0), Vec3f(kLightX1, kLightY, kLightZ1),
+        Vec3f(kLightX0, kLightY, kLightZ1)};
+    m.triangles = {Vec3I(0, 1, 2), Vec3I(0, 2, 3), Vec3I(4, 5, 6), Vec3I(4, 6, 7)};
+    m.triangleMaterials = {0, 0, 1, 1};
+    const double lightArea = (kLightX1 - kLightX0) * (kLightZ1 - kLightZ0);
+    const Vec3d power = kLightKe * lightArea;
+    double worst = 0.0;
+    int worstRes = 0;
+    for (const int separation : {26, 6}) {
+        for (int res = 32; res <= 512; res += separation == 26 ? 1 : 15) {
+            VoxelizeOptions o;
+            o.voxelSize = kRoomZ / res;
+            o.separation = separation;
+            std::vector<std::string> warnings;
+            const openvdb::GridPtrVec grids = voxelizeMesh(m, o, nullptr, &warnings);
+            EXPECT_TRUE(warnings.empty()) << res << ": " << warnings.front();
+            const auto emission = openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(
+                findGrid(grids, "emission"));
+            ASSERT_TRUE(emission) << "res " << res;
+            // At least the light's area in voxel faces: each emitting voxel holds at most one.
+            EXPECT_GE(double(emission->activeVoxelCount()), lightArea / (o.voxelSize * o.voxelSize))
+                << "res " << res;
+            const double error = relativeError(voxelPower(grids), power);
+            if (error > worst) {
+                worst = error;
+                worstRes = res;
+            }
+            // Emission wins the whole voxel: the light's albedo and normal, not the ceiling's.
+            const auto albedo = openvdb::gridConstPtrCast<openvdb::FloatGrid>(
+                findGrid(grids, "albedo"));
+            const auto normal = normalGrid(grids);
+            ASSERT_TRUE(albedo && normal);
+            size_t wrong = 0;
+            for (auto it = emission->cbeginValueOn(); it; ++it) {
+                wrong += *it != Vec3f(kLightKe)
+                    || albedo->tree().getValue(it.getCoord()) != 0.78f
+                    || normal->tree().getValue(it.getCoord()) != Vec3f(0, -1, 0);
+            }
+            EXPECT_EQ(wrong, 0u) << "res " << res << ", " << separation << "-separating";
+        }
+    }
+    // The area in each voxel is exact clipping, stored as float: the sum is the light's power
+    // to float rounding (measured: 3.2e-7 at worst).
+    EXPECT_LT(worst, 1e-5) << "at res " << worstRes;
+    std::cout << "light power: worst relative error " << worst << " (res " << worstRes << ")\n";
+}
+
+TEST_F(VoxelizerTest, CornellObjWithAMisplacedMtllibKeepsItsLight)
+{
+    // The whole OBJ + MTL pair as the public file has it: `mtllib` names a folder that is not
+    // there, the MTL lies beside the OBJ. The light keeps the mesh's power, as the solver sees
+    // it (Emitters), and every object is in `material_id`.
+    writeFile("cornell.mtl", kCornellMtl);
+    const std::string obj = writeFile("cornell.obj",
+        cornellObj("CornellBox/vdbrad_voxelizer_cornell.mtl"));
+    const TriangleMesh mesh = readObj(obj);
+    ASSERT_EQ(mesh.warnings.size(), 1u);
+    EXPECT_EQ(mesh.warnings[0], obj + ":2: material library "
+        "'CornellBox/vdbrad_voxelizer_cornell.mtl' not found as written; using "
+        "'vdbrad_voxelizer_cornell.mtl' beside the OBJ");
+    ASSERT_EQ(mesh.materials.size(), 4u);
+    EXPECT_EQ(mesh.groups, (std::vector<std::string>{"floor", "ceiling", "back_wall",
+        "left_wall", "right_wall", "light"}));
+    const Vec3d power = kLightKe * (kLightX1 - kLightX0) * (kLightZ1 - kLightZ0);
+    for (const int res : {32, 96, 128, 300, 512}) {
+        VoxelizeOptions o;
+        o.resolution = res;
+        std::vector<std::string> warnings;
+        const openvdb::GridPtrVec grids = voxelizeMesh(mesh, o, nullptr, &warnings);
+        EXPECT_TRUE(warnings.empty()) << res;
+        EXPECT_LT(relativeError(voxelPower(grids), power), 1e-5) << "res " << res;
+        const Scene scene = buildScene(grids);
+        const Emitters emitters(scene);
+        ASSERT_EQ(emitters.patches().size(), 1u) << "res " << res;
+        const double vs = scene.voxelSize();
+        const double mean = (power[0] + power[1] + power[2]) / 3.0;
+        EXPECT_NEAR(emitters.power() * vs * vs, mean, 1e-5 * mean) << "res " << res;
+        std::cout << "res " << res << ": voxel power error " << relativeError(voxelPower(grids),
+            power) << ", Emitters " << std::abs(emitters.power() * vs * vs / mean - 1.0) << "\n";
+        // material_id: the object of each voxel's triangle, names in metadata.
+        const auto ids = openvdb::gridConstPtrCast<openvdb::Int32Grid>(
+            findGrid(grids, "material_id"));
+        ASSERT_TRUE(ids);
+        EXPECT_EQ(ids->background(), -1);
+        EXPECT_EQ(ids->activeVoxelCount(), normalGrid(grids)->activeVoxelCount());
+        for (size_t i = 0; i < mesh.groups.size(); ++i) {
+            const auto name = (*ids)["vdbrad:material_name:" + std::to_string(i)];
+            ASSERT_TRUE(name) << i;
+            EXPECT_EQ(name->str(), mesh.groups[i]);
+        }
+        const auto emission = findGrid(grids, "emission");
+        size_t lightIds = 0;
+        for (auto it = ids->cbeginValueOn(); it; ++it) lightIds += *it == 5;
+        EXPECT_EQ(lightIds, size_t(emission->activeVoxelCount())) << "res " << res;
+    }
+}
+
+TEST_F(VoxelizerTest, LightBesideAWallKeepsItsNormal)
+{
+    // A light on the floor against a wall: the voxels along the wall are closer to the wall's
+    // plane than to the light's centre line, yet they emit upwards, as the light does.
+    TriangleMesh m;
+    m.materials = {{"wall", Vec3f(0.5f), Vec3f(0.f)}, {"lamp", Vec3f(0.5f), Vec3f(2.f)}};
+    // Wall x = 0 facing +x; light y = 0.003 facing +y, from the wall out to x = 0.3.
+    m.points = {Vec3f(0, 0, 0), Vec3f(0, 1, 0), Vec3f(0, 1, 1), Vec3f(0, 0, 1),
+        Vec3f(0, 0.003f, 0.2f), Vec3f(0, 0.003f, 0.8f), Vec3f(0.3f, 0.003f, 0.8f),
+        Vec3f(0.3f, 0.003f, 0.2f)};
+    m.triangles = {Vec3I(0, 1, 2), Vec3I(0, 2, 3), Vec3I(4, 5, 6), Vec3I(4, 6, 7)};
+    m.triangleMaterials = {0, 0, 1, 1};
+    VoxelizeOptions o;
+    o.voxelSize = 0.0237;
+    const openvdb::GridPtrVec grids = voxelizeMesh(m, o);
+    const auto emission = openvdb::gridConstPtrCast<openvdb::FloatGrid>(findGrid(grids, "emission"));
+    ASSERT_TRUE(emission);
+    const auto normal = normalGrid(grids);
+    size_t atWall = 0;
+    for (auto it = emission->cbeginValueOn(); it; ++it) {
+        EXPECT_EQ(normal->tree().getValue(it.getCoord()), Vec3f(0, 1, 0)) << it.getCoord();
+        atWall += it.getCoord().x() == 0;
+    }
+    EXPECT_GT(atWall, 20u);   // the wall's column of voxels: 0.6 / 0.0237 of them
+    EXPECT_LT(relativeError(voxelPower(grids), Vec3d(2.0 * 0.3 * 0.6)), 1e-5);
+}
+
+TEST_F(VoxelizerTest, LightsSharingVoxelsKeepTheirPowerAndLostOnesAreNamed)
+{
+    // Two lights of different colours side by side in the same voxels: the voxels emit the
+    // area-weighted mean, so the power per channel is the sum of theirs.
+    TriangleMesh m;
+    m.materials = {{"warm", Vec3f(0.5f), Vec3f(4.f, 2.f, 1.f)},
+        {"cold", Vec3f(0.5f), Vec3f(1.f, 2.f, 8.f)}};
+    m.points = {Vec3f(0, 0, 0), Vec3f(0, 0, 1), Vec3f(0.51f, 0, 1), Vec3f(0.51f, 0, 0),
+        Vec3f(1, 0, 0)};
+    m.triangles = {Vec3I(0, 1, 2), Vec3I(0, 2, 3), Vec3I(3, 2, 4)};
+    m.triangleMaterials = {0, 0, 1};
+    VoxelizeOptions o;
+    o.voxelSize = 0.1;
+    std::vector<std::string> warnings;
+    const openvdb::GridPtrVec grids = voxelizeMesh(m, o, nullptr, &warnings);
+    EXPECT_TRUE(warnings.empty());
+    const Vec3d want = Vec3d(4, 2, 1) * 0.51 + Vec3d(1, 2, 8) * (0.49 * 0.5);
+    EXPECT_LT(relativeError(voxelPower(grids), want), 1e-5);
+
+    // A two-sided light (the same quad wound both ways) and a degenerate emitting triangle:
+    // the voxels keep one side, and the lost triangles are named.
+    TriangleMesh two;
+    two.materials = {{"panel", Vec3f(0.5f), Vec3f(3.f)}};
+    two.points = {Vec3f(0, 0, 0), Vec3f(0, 0, 1), Vec3f(1, 0, 1), Vec3f(1, 0, 0)};
+    two.triangles = {Vec3I(0, 1, 2), Vec3I(0, 2, 3), Vec3I(0, 2, 1), Vec3I(0, 3, 2),
+        Vec3I(0, 0, 1)};
+    two.triangleMaterials = {0, 0, 0, 0, 0};
+    two.groups = {"lamp"};
+    two.triangleGroups = {0, 0, 0, 0, 0};
+    warnings.clear();
+    const openvdb::GridPtrVec twoGrids = voxelizeMesh(two, o, nullptr, &warnings);
+    ASSERT_EQ(warnings.size(), 2u);
+    EXPECT_EQ(warnings[0], "emitting triangle 5 (material 'panel', object 'lamp') has no area: "
+        "it adds no light");
+    EXPECT_EQ(warnings[1], "emitting triangle 3 (material 'panel', object 'lamp') keeps no voxel "
+        "of its own: each voxel it lies in is held by a light facing another way (a two-sided "
+        "light?), and its light leaves that way (and 1 more emitting triangles)");
+    const auto area = openvdb::gridConstPtrCast<openvdb::FloatGrid>(
+        findGrid(twoGrids, "emission_area"));
+    ASSERT_TRUE(area);
+    double total = 0.0;
+    for (auto it = area->cbeginValueOn(); it; ++it) total += *it;
+    EXPECT_NEAR(total, 2.0, 1e-5);   // both sides' area: the power is kept, one way
 }
 
 // ---- errors -----------------------------------------------------------------------------------

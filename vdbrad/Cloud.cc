@@ -38,8 +38,16 @@ buildCloud(const openvdb::GridPtrVec& grids, const CloudOptions& options,
     GridRoles roles = identifyRoles(grids, "", options.density);
     if (!options.albedoGrid) roles.albedo.reset();
     if (!roles.density) {
+        // Simulators name their fields freely: name the fog volumes the file has.
+        std::string fogs;
+        for (const auto& g : grids) {
+            if (g && g->getGridClass() == openvdb::GRID_FOG_VOLUME) {
+                fogs += (fogs.empty() ? "" : ", ") + ("'" + g->getName() + "'");
+            }
+        }
         OPENVDB_THROW(openvdb::KeyError, "no cloud: expected a float grid named '"
-            << options.density << "'");
+            << options.density << "'" << (fogs.empty() ? "" : " (the file's fog volumes: "
+            + fogs + "; choose one with --density NAME)"));
     }
     const auto& density = static_cast<const openvdb::FloatGrid&>(*roles.density);
     checkTransform(density);

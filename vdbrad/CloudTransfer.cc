@@ -39,6 +39,18 @@ using openvdb::Coord;
 using openvdb::Vec3d;
 
 constexpr double kPi = 3.14159265358979323846;
+
+// Channel @a c of voxel @a i: an RGB problem is solved one colour at a time.
+float channelOf(const Attribute& a, size_t i, int c)
+{
+    return a.isRgb() ? a.rgb(i)[c] : a.grey(i);
+}
+
+// Whether the problem has colours: an RGB albedo (medium or surfaces) or surface emission.
+bool isRgb(const Cloud& cloud, const CloudTransferOptions& o)
+{
+    return cloud.albedo().isRgb() || (o.surfaces && o.surfaces->isRgb());
+}
 // What a line carries: its radiance, whether it has met its first voxel yet (periodic boundaries
 // give that voxel the light re-entering the box) and the last voxel it met (where it leaves).
 // A voxel is finished only when the next one on its line is met (or the pass ends), which gives
@@ -305,9 +317,8 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         OPENVDB_THROW(openvdb::ValueError, "minimum period must be >= 0 voxels (or -1: auto), got "
             << options.minPeriod);
     }
-    if (given.albedo().isRgb()) {
-        OPENVDB_THROW(openvdb::ValueError, "RGB single-scattering albedo is not supported yet; "
-            "give a float albedo grid");
+    if (options.channel < 0 || options.channel > 2) {
+        OPENVDB_THROW(openvdb::ValueError, "channel must be 0, 1 or 2, got " << options.channel);
     }
     if (options.phaseOrder < -1) {
         OPENVDB_THROW(openvdb::ValueError, "phase order must be >= 0 (or -1: auto), got "
@@ -351,7 +362,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
             OPENVDB_THROW(openvdb::ValueError, "surfaces inside a cloud are solved in an open "
                 "box without a ground (give the ground as surface voxels)");
         }
-        impl.surfaces.reset(new FogSurfaces(*options.surfaces, options.surfaceChannel));
+        impl.surfaces.reset(new FogSurfaces(*options.surfaces, options.channel));
         std::vector<uint32_t> from;
         Cloud merged = impl.surfaces->merged(given, from, impl.surfaceOf);
         static_assert(FogSurfaces::kNone == GroundLayer::kGround, "one mark for no cloud voxel");
@@ -371,7 +382,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
                 << cloud.extinction(i) << " per unit, voxel size " << h << ")");
         }
         impl.kappa[i] = float(k);
-        impl.omega[i] = cloud.albedo().grey(i);
+        impl.omega[i] = channelOf(cloud.albedo(), i, options.channel);
     }
     // Phase function: order K and delta-M scaling of extinction and albedo.
     const PhaseFunction::Truncated trunc = options.phase.truncate(order);
@@ -562,7 +573,7 @@ CloudTransfer::chooseAcceleration(const Cloud& cloud, const CloudTransferOptions
     for (size_t i = 0; i < cloud.size(); ++i) {
         Coord c = cloud.voxels().coord(i);
         c[options.up] = 0;
-        const double w = cloud.albedo().grey(i), scaled = 1.0 - w * f;
+        const double w = channelOf(cloud.albedo(), i, options.channel), scaled = 1.0 - w * f;
         double& tau = column[c];
         tau += double(cloud.extinction(i)) * h * scaled;
         tauMax = std::max(tauMax, tau);
@@ -578,8 +589,7 @@ CloudTransfer::chooseAcceleration(const Cloud& cloud, const CloudTransferOptions
     if (options.surfaces) {
         const Attribute& a = options.surfaces->albedo();
         for (size_t s = 0; s < options.surfaces->size(); ++s) {
-            slowest = std::max(slowest, double(a.isRgb() ? a.rgb(s)[options.surfaceChannel]
-                                                         : a.grey(s)));
+            slowest = std::max(slowest, double(channelOf(a, s, options.channel)));
         }
     }
     return slowest > 0.5 ? Acceleration::Anderson : Acceleration::None;
@@ -1440,8 +1450,8 @@ CloudTransfer::describe() const
     if (mImpl->ground) os << ", over a Lambertian ground of albedo " << mImpl->groundAlbedo;
     if (mImpl->surfaces) {
         os << ", with " << withCommas(mImpl->surfaces->size()) << " surface voxels";
-        if (mOptions.surfaces->isRgb()) os << " (channel " << mOptions.surfaceChannel << ")";
     }
+    if (isRgb(mCloud, mOptions)) os << " (channel " << mOptions.channel << ")";
     return os.str();
 }
 
@@ -1484,30 +1494,31 @@ statsOf(const CloudTransfer& transfer)
     return stats;
 }
 
-// An RGB surface scene in a grey medium: light of each colour travels alone, so each channel
-// is its own transfer (the medium's work three times over).
+// Colours (an RGB albedo of the medium or of the surfaces, RGB lamps): light of each colour
+// travels alone, so each channel is its own transfer (the medium's work three times over).
 openvdb::GridBase::Ptr
 solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
     openvdb::GridBase::Ptr* radiosity)
 {
     if (!control.checkpoint.empty() || !control.resume.empty()) {
-        OPENVDB_THROW(openvdb::ValueError, "checkpoints are not supported for an RGB surface "
-            "scene inside a cloud (three solves, one per channel)");
+        OPENVDB_THROW(openvdb::ValueError, "checkpoints are not supported for an RGB cloud or "
+            "surface scene (three solves, one per channel)");
     }
-    const Scene& scene = *options.surfaces;
-    std::vector<openvdb::Vec3f> J(cloud.size()), B(scene.size());
+    const Scene* scene = options.surfaces;
+    std::vector<openvdb::Vec3f> J(cloud.size()), B(scene ? scene->size() : 0);
     openvdb::Vec3f albedo, transmittance, absorptance;
     SolveStats stats;
     double residual = 0.0;
     for (int c = 0; c < 3; ++c) {
         CloudTransferOptions o = options;
-        o.surfaceChannel = c;
+        o.channel = c;
         CloudTransfer transfer(cloud, o, interrupt);
         iterateFramed(transfer, control, interrupt);
         const CloudBudget& b = transfer.budget();
         if (control.note) control.note("channel " + std::string(1, "rgb"[c]) + ": " + budgetLine(b, o));
-        const std::vector<float> j = transfer.meanIntensity(), r = transfer.surfaceRadiosity();
+        const std::vector<float> j = transfer.meanIntensity();
+        const std::vector<float> r = scene ? transfer.surfaceRadiosity() : std::vector<float>();
         for (size_t i = 0; i < J.size(); ++i) J[i][c] = j[i];
         for (size_t v = 0; v < B.size(); ++v) B[v][c] = r[v];
         albedo[c] = float(b.albedo);
@@ -1520,7 +1531,10 @@ solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
         stats.seconds += s.seconds;
     }
     stats.residual = residual;
-    if (radiosity) *radiosity = makeRadiosityGrid(scene, B, stats);
+    if (radiosity) {
+        radiosity->reset();
+        if (scene) *radiosity = makeRadiosityGrid(*scene, B, stats);
+    }
     openvdb::Vec3SGrid::Ptr g = arrayToGrid(cloud.voxels(), J, cloud.transform(),
         "mean_intensity");
     g->insertMeta("vdbrad:albedo", openvdb::Vec3SMetadata(albedo));
@@ -1541,7 +1555,7 @@ solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
     openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity)
 {
-    if (options.surfaces && options.surfaces->isRgb()) {
+    if (isRgb(cloud, options)) {
         if (ground) ground->reset();
         return solveCloudRgb(cloud, options, interrupt, control, radiosity);
     }

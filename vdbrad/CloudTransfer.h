@@ -162,9 +162,10 @@ struct CloudTransferOptions
     /// (their emission: lamps). Not owned: it must outlive the transfer. Not with periodic
     /// boundaries or a ground (model the ground as surface voxels).
     const Scene* surfaces = nullptr;
-    /// The channel (0, 1, 2) of an RGB surface scene's albedo and emission solved; the medium
-    /// is grey, so solveCloud() solves an RGB scene channel by channel.
-    int surfaceChannel = 0;
+    /// The channel (0, 1, 2) solved of an RGB albedo (the medium's or the surfaces') and of the
+    /// surfaces' emission: light of each colour travels alone, so solveCloud() solves an RGB
+    /// problem channel by channel.
+    int channel = 0;
 };
 
 /// Where the incident sunlight went, as fractions of the incident power (after the last sweep).
@@ -200,7 +201,7 @@ class CloudTransfer : public IterativeSolver
 {
 public:
     /// @brief Prepare the sweeps and trace the solar beam.
-    /// @throw openvdb::ValueError for invalid options or an RGB albedo (not supported yet)
+    /// @throw openvdb::ValueError for invalid options
     /// @throw vdbrad::Cancelled if @a interrupt asks to stop
     CloudTransfer(const Cloud& cloud, const CloudTransferOptions& options,
         openvdb::util::NullInterrupter* interrupt = nullptr);
@@ -295,9 +296,9 @@ private:
 /// @brief Solve the transfer in @a cloud and return its `mean_intensity` grid (see grid()).
 /// @a control: checkpoints and reports (SolveControl); @a ground, if not null, gets the
 /// ground's irradiance (groundGrid(); null without a ground); @a radiosity, if not null, the
-/// surfaces' `radiosity` grid (CloudTransferOptions::surfaces; null without). An RGB surface
-/// scene is solved channel by channel (the medium is grey): `mean_intensity` and `radiosity`
-/// are then vec3s grids (checkpoints refused).
+/// surfaces' `radiosity` grid (CloudTransferOptions::surfaces; null without). An RGB albedo
+/// (medium or surfaces) or RGB surface emission is solved channel by channel: `mean_intensity`
+/// and `radiosity` are then vec3s grids (checkpoints refused, no ground grid).
 /// @throw as CloudTransfer's constructor and iterate(); as readCheckpoint(), writeCheckpoint()
 openvdb::GridBase::Ptr solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt = nullptr,

@@ -1,6 +1,10 @@
 #include "vdbrad/GridContract.h"
 
+#include "vdbrad/Attribute.h"
+
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace vdbrad {
@@ -14,12 +18,94 @@ findGrid(const openvdb::GridPtrVec& grids, const std::string& name)
     return nullptr;
 }
 
+bool
+GridRoles::uses(const openvdb::GridBase::ConstPtr& grid) const
+{
+    return std::find(sources.begin(), sources.end(), grid) != sources.end();
+}
+
 namespace {
+
+bool isScalar(const openvdb::GridBase& g)
+{
+    return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>();
+}
+
+bool isVector(const openvdb::GridBase& g)
+{
+    return g.isType<openvdb::Vec3SGrid>() || g.isType<openvdb::Vec3DGrid>();
+}
 
 bool isLevelSet(const openvdb::GridBase& g)
 {
-    return g.getGridClass() == openvdb::GRID_LEVEL_SET && g.isType<openvdb::FloatGrid>();
+    return g.getGridClass() == openvdb::GRID_LEVEL_SET && isScalar(g);
 }
+
+double magnitude(double v) { return std::abs(v); }
+double magnitude(const openvdb::Vec3d& v)
+{
+    return std::max({std::abs(v[0]), std::abs(v[1]), std::abs(v[2])});
+}
+
+template<typename ToGridT, typename FromGridT>
+openvdb::GridBase::ConstPtr
+converted(const FromGridT& from)
+{
+    // float's range, not its precision, is what a conversion can lose: an overflow would
+    // become an infinity the samplers then report far from its cause.
+    const double limit = double(std::numeric_limits<float>::max());
+    auto check = [&](const auto& v, const openvdb::Coord& ijk) {
+        const double m = magnitude(v);
+        if (std::isfinite(m) && m > limit) {
+            OPENVDB_THROW(openvdb::ValueError, "grid '" << from.getName() << "' holds " << m
+                << " at " << formatCoord(ijk) << ", beyond single precision (vdbrad computes "
+                "in float)");
+        }
+    };
+    check(from.background(), openvdb::Coord());
+    // Every value, active or not (samplers read inactive ones too; a level set's sign lives in
+    // them): the same topology, then both trees' values in lock step.
+    using ToT = typename ToGridT::ValueType;
+    auto tree = std::make_shared<typename ToGridT::TreeType>(from.tree(),
+        ToT(from.background()), openvdb::TopologyCopy());
+    auto to = tree->beginValueAll();
+    for (auto it = from.tree().cbeginValueAll(); it; ++it, ++to) {
+        if (!to || to.getCoord() != it.getCoord()) {
+            OPENVDB_THROW(openvdb::ValueError, "grid '" << from.getName() << "': its copy in "
+                "single precision does not have its topology");
+        }
+        check(*it, it.getCoord());
+        to.setValue(ToT(*it));
+    }
+    typename ToGridT::Ptr grid = ToGridT::create(tree);
+    grid->insertMeta(from);   // name, class, vector type and the rest
+    grid->setTransform(from.transform().copy());
+    return grid;
+}
+
+} // namespace
+
+openvdb::GridBase::ConstPtr
+singlePrecision(const openvdb::GridBase::ConstPtr& grid, std::string* note)
+{
+    if (note) note->clear();
+    if (!grid) return grid;
+    auto say = [&](const std::string& what) {
+        if (note) *note = "grid '" + grid->getName() + "': " + what;
+    };
+    if (auto d = openvdb::GridBase::constGrid<openvdb::DoubleGrid>(grid)) {
+        say("double values read as float (the solvers' precision; relative rounding <= 6e-8)");
+        return converted<openvdb::FloatGrid>(*d);
+    }
+    if (auto d = openvdb::GridBase::constGrid<openvdb::Vec3DGrid>(grid)) {
+        say("vec3d values read as vec3s (the solvers' precision; relative rounding <= 6e-8)");
+        return converted<openvdb::Vec3SGrid>(*d);
+    }
+    if (grid->saveFloatAsHalf()) say("stored as half floats (about 3 significant digits)");
+    return grid;
+}
+
+namespace {
 
 void
 requireType(const openvdb::GridBase::ConstPtr& g, bool ok, const char* role, const char* expected)
@@ -37,49 +123,58 @@ identifyRoles(const openvdb::GridPtrVec& grids, const std::string& surfaceName,
     const std::string& densityName)
 {
     GridRoles roles;
-    roles.albedo = findGrid(grids, names::kAlbedo);
-    roles.emission = findGrid(grids, names::kEmission);
-    roles.density = findGrid(grids, densityName);
-    auto colour = [](const openvdb::GridBase::ConstPtr& g) {
-        return g->isType<openvdb::FloatGrid>() || g->isType<openvdb::Vec3SGrid>();
+    // Each role's grid of the file, type-checked, in single precision.
+    auto take = [&](openvdb::GridBase::ConstPtr& role, const openvdb::GridBase::ConstPtr& g,
+                    const char* name, bool ok, const char* expected) {
+        if (!g) return;
+        requireType(g, ok, name, expected);
+        roles.sources.push_back(g);
+        std::string note;
+        role = singlePrecision(g, &note);
+        if (!note.empty()) roles.notes.push_back(note);
     };
-    requireType(roles.albedo, roles.albedo && colour(roles.albedo), "albedo", "float or vec3s");
-    requireType(roles.emission, roles.emission && colour(roles.emission), "emission",
-        "float or vec3s");
-    requireType(roles.density, roles.density && roles.density->isType<openvdb::FloatGrid>(),
-        "density", "float");
-    roles.emissionArea = findGrid(grids, names::kEmissionArea);
-    requireType(roles.emissionArea,
-        roles.emissionArea && roles.emissionArea->isType<openvdb::FloatGrid>(), "emission_area",
-        "float");
-
-    roles.specular = findGrid(grids, names::kSpecular);
-    requireType(roles.specular, roles.specular && colour(roles.specular), "specular",
-        "float or vec3s");
-    roles.roughness = findGrid(grids, names::kRoughness);
-    requireType(roles.roughness, roles.roughness && roles.roughness->isType<openvdb::FloatGrid>(),
-        "roughness", "float");
+    auto colour = [](const openvdb::GridBase::ConstPtr& g) {
+        return isScalar(*g) || isVector(*g);
+    };
+    const char* colours = "float, double, vec3s or vec3d";
+    const char* scalars = "float or double";
+    openvdb::GridBase::ConstPtr albedo = findGrid(grids, names::kAlbedo);
+    for (const char* alias : {names::kHoudiniColour, names::kBlenderColour}) {
+        if (albedo) break;
+        albedo = findGrid(grids, alias);
+        if (albedo) {
+            roles.notes.push_back(std::string("grid '") + alias + "' taken as the albedo (no "
+                "'albedo' grid)");
+        }
+    }
+    take(roles.albedo, albedo, "albedo", albedo && colour(albedo), colours);
+    const auto emission = findGrid(grids, names::kEmission);
+    take(roles.emission, emission, "emission", emission && colour(emission), colours);
+    const auto density = findGrid(grids, densityName);
+    take(roles.density, density, "density", density && isScalar(*density), scalars);
+    const auto area = findGrid(grids, names::kEmissionArea);
+    take(roles.emissionArea, area, "emission_area", area && isScalar(*area), scalars);
+    const auto specular = findGrid(grids, names::kSpecular);
+    take(roles.specular, specular, "specular", specular && colour(specular), colours);
+    const auto roughness = findGrid(grids, names::kRoughness);
+    take(roles.roughness, roughness, "roughness", roughness && isScalar(*roughness), scalars);
 
     if (!surfaceName.empty()) {
-        roles.surface = findGrid(grids, surfaceName);
-        if (!roles.surface) {
+        const auto surface = findGrid(grids, surfaceName);
+        if (!surface) {
             OPENVDB_THROW(openvdb::KeyError, "no grid named '" << surfaceName << "'");
         }
-        if (roles.surface->isType<openvdb::Vec3SGrid>()) {
-            roles.surfaceKind = GridRoles::SurfaceKind::NormalGrid;
-        } else if (roles.surface->isType<openvdb::FloatGrid>()) {
-            // A named float grid is taken as a signed distance even if its class metadata is
-            // missing (some exporters drop it); the user asked for it explicitly.
-            roles.surfaceKind = GridRoles::SurfaceKind::LevelSet;
-        } else {
-            requireType(roles.surface, false, "surface", "float (level set) or vec3s (normals)");
-        }
+        // A named scalar grid is taken as a signed distance even if its class metadata is
+        // missing (some exporters drop it); the user asked for it explicitly.
+        take(roles.surface, surface, "surface", isScalar(*surface) || isVector(*surface),
+            "float or double (level set), vec3s or vec3d (normals)");
+        roles.surfaceKind = isVector(*surface) ? GridRoles::SurfaceKind::NormalGrid
+                                               : GridRoles::SurfaceKind::LevelSet;
         return roles;
     }
 
     if (auto normal = findGrid(grids, names::kNormal)) {
-        requireType(normal, normal->isType<openvdb::Vec3SGrid>(), "normal", "vec3s");
-        roles.surface = normal;
+        take(roles.surface, normal, "normal", isVector(*normal), "vec3s or vec3d");
         roles.surfaceKind = GridRoles::SurfaceKind::NormalGrid;
         return roles;
     }
@@ -96,7 +191,7 @@ identifyRoles(const openvdb::GridPtrVec& grids, const std::string& surfaceName,
             << "): choose the surface with --surface NAME");
     }
     if (levelSets.size() == 1) {
-        roles.surface = levelSets[0];
+        take(roles.surface, levelSets[0], "surface", true, "");
         roles.surfaceKind = GridRoles::SurfaceKind::LevelSet;
     }
     return roles;

@@ -6,7 +6,10 @@
 // exist, every number for syntax and finiteness. Errors name the file (and the line, for text).
 #pragma once
 
+#include <openvdb/Types.h>
+
 #include <cstddef>
+#include <cstdint>
 #include <fstream>
 #include <string>
 #include <string_view>
@@ -40,6 +43,27 @@ std::string formatNumber(double v);
 /// Opens @a path or throws "<label>: cannot open: <reason>". Refuses directories up front: on
 /// Linux they open as streams and then read as empty files.
 void openFile(std::ifstream& f, const std::string& path, const std::string& label);
+
+// ---- polygons ----------------------------------------------------------------------------------
+
+/// A polygon of more than three vertices as a reader first stored it: the fan (v0 v1 v2),
+/// (v0 v2 v3), ... at triangles [first, first + count). The fan alone holds its vertices, so a
+/// reader can fan every polygon as it reads (vertices may still be to come) and fix the few
+/// that need it at the end.
+struct PolygonFan
+{
+    size_t first;
+    uint32_t count;   // triangles: the polygon's vertices less two
+};
+
+/// @brief Re-triangulates each polygon of @a fans in place whose fan is wrong: a fan covers a
+/// convex polygon exactly, but over a concave one (an L-shaped floor) it lays triangles outside
+/// the outline, wound backwards. Those are ear-clipped in the plane of their Newell normal
+/// instead, into as many triangles (so per-triangle materials stay put), wound as the polygon.
+/// A fan that cannot be improved on (self-intersecting or degenerate outline, more than 256
+/// vertices) is kept as it is.
+void triangulatePolygons(const std::vector<openvdb::Vec3f>& points,
+    std::vector<openvdb::Vec3I>& triangles, const std::vector<PolygonFan>& fans);
 
 } // namespace parsing
 } // namespace vdbrad

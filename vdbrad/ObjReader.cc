@@ -232,10 +232,8 @@ readMtl(const std::string& path, const std::string& context, MaterialTable& tabl
 // ---- OBJ ---------------------------------------------------------------------------------------
 
 std::string
-joinPath(const std::string& folder, std::string name)
+joinPath(const std::string& folder, const std::string& name)
 {
-    // Windows exporters write "mtllib .\materials\a.mtl".
-    std::replace(name.begin(), name.end(), '\\', '/');
     if (!name.empty() && name[0] == '/') return name;
     return folder + "/" + name;
 }
@@ -255,6 +253,24 @@ parentFolder(const std::string& path)
     return slash == 0 ? "/" : path.substr(0, slash);
 }
 
+/// Where a `mtllib` name points: as written, relative to the OBJ's folder; else its file name
+/// alone in that folder (exporters keep the folder the MTL had on the author's machine); else
+/// nowhere (empty). @a byName tells which.
+std::string
+findLibrary(const std::string& folder, std::string name, bool& byName)
+{
+    // Windows exporters write "mtllib .\materials\a.mtl".
+    std::replace(name.begin(), name.end(), '\\', '/');
+    byName = false;
+    const std::string written = joinPath(folder, name);
+    if (isFile(written)) return written;
+    const size_t slash = name.rfind('/');
+    if (slash == std::string::npos || slash + 1 == name.size()) return {};
+    const std::string beside = folder + "/" + name.substr(slash + 1);
+    byName = isFile(beside);
+    return byName ? beside : std::string();
+}
+
 } // namespace
 
 
@@ -263,8 +279,15 @@ readObj(std::istream& in, const std::string& name, const std::string& folder)
 {
     TriangleMesh mesh;
     MaterialTable table;
-    bool haveLibrary = false;
+    std::unordered_set<std::string> libraries;   // mtllib names already handled
+    bool haveLibrary = false, missingLibrary = false;
     int32_t current = -1;
+    // Groups (`o` / `g`): ids in order of each name's first face.
+    std::unordered_map<std::string, int32_t> groupIds;
+    std::string groupName = "default";
+    int32_t groupId = -1;
+    bool haveGroups = false;
+    std::vector<PolygonFan> fans;   // polygons of more than 3 vertices, checked at the end
 
     // A positive index may name a vertex defined further down (the spec does not forbid it and
     // some writers emit faces first), so those are checked at the end, in file order.
@@ -337,11 +360,19 @@ readObj(std::istream& in, const std::string& name, const std::string& folder)
                 OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": face with "
                     << polygon.size() << " vertices (at least 3 needed)");
             }
-            // A fan keeps the polygon's winding in every triangle (exact for convex polygons,
-            // which is what exporters write).
+            // A fan now (vertices may still be to come); concave polygons are re-triangulated
+            // at the end.
+            if (polygon.size() > 3) {
+                fans.push_back({mesh.triangles.size(), uint32_t(polygon.size() - 2)});
+            }
+            if (groupId < 0) {
+                groupId = groupIds.emplace(groupName, int32_t(mesh.groups.size())).first->second;
+                if (size_t(groupId) == mesh.groups.size()) mesh.groups.push_back(groupName);
+            }
             for (size_t i = 1; i + 1 < polygon.size(); ++i) {
                 mesh.triangles.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
                 mesh.triangleMaterials.push_back(current);
+                mesh.triangleGroups.push_back(groupId);
             }
         } else if (key == "mtllib") {
             if (tokens.size() < 2) {
@@ -352,26 +383,56 @@ readObj(std::istream& in, const std::string& name, const std::string& folder)
             // a file exists (Blender writes the file name unquoted).
             const std::string whole(restOfLine(text, key));
             std::vector<std::string> names;
-            if (tokens.size() > 2 && isFile(joinPath(folder, whole))) {
+            bool byName = false;
+            if (tokens.size() > 2 && !findLibrary(folder, whole, byName).empty()) {
                 names.push_back(whole);
             } else {
                 for (size_t i = 1; i < tokens.size(); ++i) names.emplace_back(tokens[i]);
             }
             for (const std::string& lib : names) {
-                readMtl(joinPath(folder, lib), at(name, line), table);
+                if (!libraries.insert(lib).second) continue;   // named again: nothing new
+                const std::string found = findLibrary(folder, lib, byName);
+                if (found.empty()) {
+                    // As Blender does: the scene still loads, its materials plain.
+                    mesh.warnings.push_back(at(name, line) + ": material library '" + lib
+                        + "' not found: its materials get albedo 0.5 and no emission");
+                    missingLibrary = true;
+                    continue;
+                }
+                if (byName) {
+                    mesh.warnings.push_back(at(name, line) + ": material library '" + lib
+                        + "' not found as written; using '" + found.substr(folder.size() + 1)
+                        + "' beside the OBJ");
+                }
+                readMtl(found, at(name, line), table);
             }
             haveLibrary = true;
         } else if (key == "usemtl") {
             if (!haveLibrary) continue;   // no library: the scene's default material
             const std::string material(restOfLine(text, key));
             const auto found = table.index.find(material);
-            if (found == table.index.end()) {
+            if (found != table.index.end()) {
+                current = found->second;
+            } else if (missingLibrary) {
+                // Presumably defined in the library that is missing: a plain material of its
+                // own, so its faces are still told apart (material names, albedo grid).
+                current = int32_t(table.materials.size());
+                table.index.emplace(material, current);
+                Material m;
+                m.name = material;
+                table.materials.push_back(m);
+            } else {
                 OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": unknown material "
                     << quote(material) << " (not in the mtllib files)");
             }
-            current = found->second;
+        } else if (key == "o" || key == "g") {
+            // The last `o` or `g` names the faces that follow; a bare `g` is the default group.
+            const std::string_view group = restOfLine(text, key);
+            groupName = group.empty() ? "default" : std::string(group);
+            haveGroups = true;
+            groupId = -1;   // found or made at the next face
         }
-        // vt, vn, vp, o, g, s, l, p, and the many statements exporters add: nothing to voxelize.
+        // vt, vn, vp, s, l, p, and the many statements exporters add: nothing to voxelize.
     }
 
     for (const auto& [faceLine, k] : forward) {
@@ -381,8 +442,13 @@ readObj(std::istream& in, const std::string& name, const std::string& folder)
         }
     }
     if (mesh.triangles.empty()) OPENVDB_THROW(openvdb::ValueError, name << ": no triangles");
+    triangulatePolygons(mesh.points, mesh.triangles, fans);
     mesh.materials = std::move(table.materials);
     if (mesh.materials.empty()) mesh.triangleMaterials.clear();
+    if (!haveGroups) {
+        mesh.triangleGroups.clear();
+        mesh.groups.clear();
+    }
     return mesh;
 }
 

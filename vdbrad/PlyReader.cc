@@ -308,6 +308,7 @@ readPlyBody(Reader& reader, const std::vector<PlyElement>& elements, size_t vert
     bool faceColours = false;
     struct PendingFace { size_t firstTriangle, triangles; std::array<double, 3> colour; };
     std::vector<PendingFace> colouredFaces;
+    std::vector<PolygonFan> fans;   // polygons of more than 3 vertices, checked at the end
 
     std::vector<uint32_t> polygon;
     for (const PlyElement& e : elements) {
@@ -379,6 +380,9 @@ readPlyBody(Reader& reader, const std::vector<PlyElement>& elements, size_t vert
                         << " has " << polygon.size() << " vertices (at least 3 needed)");
                 }
                 const size_t first = mesh.triangles.size();
+                // A fan now (the vertices may come after the faces); concave polygons are
+                // re-triangulated at the end.
+                if (polygon.size() > 3) fans.push_back({first, uint32_t(polygon.size() - 2)});
                 for (size_t k = 1; k + 1 < polygon.size(); ++k) {
                     mesh.triangles.emplace_back(polygon[0], polygon[k], polygon[k + 1]);
                 }
@@ -390,6 +394,8 @@ readPlyBody(Reader& reader, const std::vector<PlyElement>& elements, size_t vert
             }
         }
     }
+
+    triangulatePolygons(mesh.points, mesh.triangles, fans);
 
     // Face colours win over vertex colours when a file has both.
     PlyMeshBuilder builder(mesh);

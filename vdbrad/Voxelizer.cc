@@ -224,7 +224,7 @@ voxelizeVoxelSize(const TriangleMesh& mesh, const VoxelizeOptions& options)
 
 openvdb::GridPtrVec
 voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
-    openvdb::util::NullInterrupter* interrupt)
+    openvdb::util::NullInterrupter* interrupt, std::vector<std::string>* warnings)
 {
     if (options.separation != 6 && options.separation != 26) {
         OPENVDB_THROW(openvdb::ValueError, "separation must be 6 or 26, got "
@@ -248,6 +248,16 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
     }
     if (!mesh.triangleMaterials.empty() && mesh.triangleMaterials.size() != mesh.triangles.size()) {
         OPENVDB_THROW(openvdb::ValueError, "one material index per triangle expected");
+    }
+    if (mesh.hasGroups()) {
+        if (mesh.triangleGroups.size() != mesh.triangles.size()) {
+            OPENVDB_THROW(openvdb::ValueError, "one group index per triangle expected");
+        }
+        for (const int32_t g : mesh.triangleGroups) {
+            if (g < 0 || size_t(g) >= mesh.groups.size()) {
+                OPENVDB_THROW(openvdb::ValueError, "group index " << g << " out of range");
+            }
+        }
     }
     const double voxelSize = voxelizeVoxelSize(mesh, options);
     const double inv = 1.0 / voxelSize;
@@ -319,7 +329,7 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
                     ? (std::abs(n[0]) >= std::abs(n[2]) ? 0 : 2)
                     : (std::abs(n[1]) >= std::abs(n[2]) ? 1 : 2));
                 const int u = (w + 1) % 3, v = (w + 2) % 3;
-                const double halfThickness = 0.5 * planeThickness(n, thick);
+                const double halfThickness = 0.5 * planeThickness(n, thick || emits);
                 Coord lo, hi;
                 for (int k = 0; k < 3; ++k) {
                     lo[k] = int(std::ceil(std::min({a[k], b[k], c[k]}) - 0.5 - kTouch));
@@ -338,8 +348,12 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
                             centre[u] = iu;
                             centre[v] = iv;
                             centre[w] = iw;
-                            const bool meets = thick ? triangleMeetsVoxel(centre, a, b, c)
-                                                     : triangleMeetsVoxelStar(centre, a, b, c);
+                            // Lights take every voxel their cube meets, whatever the shell:
+                            // all their area then lies in voxels (the star shell's voxels are
+                            // a subset, so it stays 6-separating).
+                            const bool meets = thick || emits
+                                ? triangleMeetsVoxel(centre, a, b, c)
+                                : triangleMeetsVoxelStar(centre, a, b, c);
                             if (!meets) continue;
                             const Coord ijk{int(centre[0]), int(centre[1]), int(centre[2])};
                             hits.push_back({ijk,
@@ -374,21 +388,6 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
         hits.end());
     if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled();
 
-    // Per voxel, the emitting area it holds (all emitting triangles) and the emitter that holds
-    // most of it: a light never loses a voxel to a coplanar wall that is closer to its centre,
-    // and its power sum over voxels (emission times emission_area) is the mesh's exactly.
-    std::vector<EmitHit> emitHits;
-    for (auto& h : emitPerThread) emitHits.insert(emitHits.end(), h.begin(), h.end());
-    std::sort(emitHits.begin(), emitHits.end());
-    std::vector<EmitHit> emitters;   // per voxel: its largest emitter, with the voxel's total
-    for (const EmitHit& h : emitHits) {
-        if (!emitters.empty() && emitters.back().ijk == h.ijk) {
-            emitters.back().area += h.area;
-        } else {
-            emitters.push_back(h);
-        }
-    }
-
     // Unit world-space normals per triangle; the transform is a uniform scale, so the index-space
     // cross product has the world direction.
     std::vector<Vec3f> normals(mesh.triangles.size());
@@ -397,24 +396,98 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
         const Vec3d n = (points[mesh.triangles[t][1]] - a).cross(points[mesh.triangles[t][2]] - a);
         normals[t] = Vec3f(n.unitSafe());
     }
-
-    // Materials actually used decide the grid types: RGB only where some colour is not grey.
     const bool hasMaterials = mesh.hasMaterials();
-    bool rgbAlbedo = false, rgbEmission = false, rgbSpecular = false;
     auto material = [&](uint32_t t) -> const Material* {
         if (!hasMaterials) return nullptr;
         const int32_t m = mesh.triangleMaterials[t];
         return m >= 0 && size_t(m) < mesh.materials.size() ? &mesh.materials[size_t(m)] : nullptr;
     };
+
+    // Emission takes precedence within a voxel: each voxel holding emitting area emits the mean
+    // emission of that area (so its power, emission times emission_area, is the mesh's however
+    // many lights share it) and takes normal and material from the emitter holding most of it,
+    // never from a wall closer to its centre: a light 1 cm under a ceiling stays a light at any
+    // resolution, and the voxelised lights' power is the mesh's.
+    std::vector<EmitHit> emitHits;
+    for (auto& h : emitPerThread) emitHits.insert(emitHits.end(), h.begin(), h.end());
+    std::sort(emitHits.begin(), emitHits.end());
+    struct EmitVoxel
+    {
+        Coord ijk;
+        uint32_t triangle;   // the largest emitter
+        double area;         // voxel faces, all emitters
+        Vec3d power;         // emission times area, all emitters
+        bool mixed;          // emitters of different emission
+    };
+    std::vector<EmitVoxel> emitters;
+    // Per triangle: 1 if it holds emitting area somewhere, 2 if a voxel it is in also faces its
+    // way (the voxel's emitter's normal within 90 degrees of its own).
+    std::vector<uint8_t> kept(mesh.triangles.size(), 0);
+    for (size_t i = 0; i < emitHits.size();) {
+        const EmitHit& largest = emitHits[i];
+        const Vec3f& emission = material(largest.triangle)->emission;
+        EmitVoxel v{largest.ijk, largest.triangle, 0.0, Vec3d(0.0), false};
+        for (; i < emitHits.size() && emitHits[i].ijk == v.ijk; ++i) {
+            const EmitHit& h = emitHits[i];
+            const Vec3f& e = material(h.triangle)->emission;
+            v.area += h.area;
+            v.power += Vec3d(e) * double(h.area);
+            v.mixed = v.mixed || e != emission;
+            const uint8_t k = normals[h.triangle].dot(normals[v.triangle]) > 0.f ? 2 : 1;
+            kept[h.triangle] = std::max(kept[h.triangle], k);
+        }
+        emitters.push_back(v);
+    }
+    auto emissionOf = [&](const EmitVoxel& v) {
+        return v.mixed ? Vec3f(v.power / v.area) : material(v.triangle)->emission;
+    };
+    for (size_t i = 0, k = 0; i < emitters.size(); ++i) {
+        // Both sorted by voxel; every emitting voxel is a surface voxel.
+        while (k < hits.size() && hits[k].ijk < emitters[i].ijk) ++k;
+        if (k < hits.size() && hits[k].ijk == emitters[i].ijk) {
+            hits[k].triangle = emitters[i].triangle;
+        }
+    }
+
+    // A light must not vanish unnoticed: name the emitting triangles that keep no voxel.
+    if (warnings) {
+        auto describe = [&](size_t t) {
+            std::ostringstream os;
+            os << "triangle " << t + 1 << " (material '" << material(uint32_t(t))->name << "'";
+            if (mesh.hasGroups()) {
+                os << ", object '" << mesh.groups[size_t(mesh.triangleGroups[t])] << "'";
+            }
+            return os.str() + ")";
+        };
+        size_t lost[2] = {0, 0}, firstLost[2] = {0, 0};
+        for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+            if (!emitting(t) || kept[t] == 2) continue;
+            if (lost[kept[t]]++ == 0) firstLost[kept[t]] = t;
+        }
+        auto more = [](size_t n) {
+            return n > 1 ? " (and " + std::to_string(n - 1) + " more emitting triangles)"
+                         : std::string();
+        };
+        if (lost[0]) {
+            warnings->push_back("emitting " + describe(firstLost[0])
+                + " has no area: it adds no light" + more(lost[0]));
+        }
+        if (lost[1]) {
+            warnings->push_back("emitting " + describe(firstLost[1]) + " keeps no voxel of its "
+                "own: each voxel it lies in is held by a light facing another way (a two-sided "
+                "light?), and its light leaves that way" + more(lost[1]));
+        }
+    }
+
+    // Materials actually used decide the grid types: RGB only where some colour is not grey.
+    bool rgbAlbedo = false, rgbEmission = false, rgbSpecular = false;
     for (const Hit& h : hits) {
         if (const Material* m = material(h.triangle)) {
             rgbAlbedo = rgbAlbedo || !isGrey(m->albedo);
             rgbSpecular = rgbSpecular || !isGrey(m->specular);
         }
     }
-    for (const EmitHit& e : emitters) {
-        rgbEmission = rgbEmission || !isGrey(material(e.triangle)->emission);
-    }
+    for (const EmitVoxel& e : emitters) rgbEmission = rgbEmission || !isGrey(emissionOf(e));
 
     openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(voxelSize);
     openvdb::Vec3SGrid::Ptr normalGrid = openvdb::Vec3SGrid::create(Vec3f(0.f));
@@ -475,12 +548,10 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
     }
     if (!emitters.empty()) {
         // Only where emitting mesh lies (a voxel whose cube merely touches a light emits
-        // nothing), with the voxel's largest emitter's colour.
+        // nothing).
         auto put = [&](auto grid, auto convert) {
             auto acc = grid->getAccessor();
-            for (const EmitHit& e : emitters) {
-                acc.setValue(e.ijk, convert(material(e.triangle)->emission));
-            }
+            for (const EmitVoxel& e : emitters) acc.setValue(e.ijk, convert(emissionOf(e)));
             grid->setName(names::kEmission);
             grid->setTransform(xform);
             grids.push_back(grid);
@@ -493,10 +564,24 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
         openvdb::FloatGrid::Ptr area = openvdb::FloatGrid::create(0.f);
         auto acc = area->getAccessor();
         const double face = voxelSize * voxelSize;
-        for (const EmitHit& e : emitters) acc.setValue(e.ijk, float(e.area * face));
+        for (const EmitVoxel& e : emitters) acc.setValue(e.ijk, float(e.area * face));
         area->setName(names::kEmissionArea);
         area->setTransform(xform);
         grids.push_back(area);
+    }
+    if (mesh.hasGroups()) {
+        // The OBJ object or group of each voxel's triangle; names in metadata, so that a file
+        // maps its ids back without the mesh.
+        openvdb::Int32Grid::Ptr ids = openvdb::Int32Grid::create(-1);
+        auto acc = ids->getAccessor();
+        for (const Hit& h : hits) acc.setValue(h.ijk, mesh.triangleGroups[h.triangle]);
+        ids->setName(names::kMaterialId);
+        ids->setTransform(xform);
+        for (size_t i = 0; i < mesh.groups.size(); ++i) {
+            ids->insertMeta(kMaterialNameMeta + std::to_string(i),
+                openvdb::StringMetadata(mesh.groups[i]));
+        }
+        grids.push_back(ids);
     }
     if (options.keepSdf) {
         if (interrupt) interrupt->start("level set");

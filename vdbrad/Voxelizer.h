@@ -1,4 +1,5 @@
-// Voxelizer: a triangle mesh -> the surface voxels of a scene (`normal`, `albedo`, `emission`).
+// Voxelizer: a triangle mesh -> the surface voxels of a scene (`normal`, `albedo`, `emission`,
+// `material_id`).
 //
 // Topology control (thesis ch. 3): the voxel set of a surface must stop the digital lines the
 // solver exchanges light along, or light leaks through walls. In index space (voxel centres at
@@ -21,7 +22,11 @@
 //
 // Each surface voxel takes its normal (the triangle's winding: counter-clockwise seen from
 // outside) and material from the triangle closest to its centre, so the faces of a cube keep
-// axis-aligned normals up to its edges, and a light quad just below a ceiling stays a light.
+// axis-aligned normals up to its edges. Emission takes precedence: a voxel holding part of a
+// light emits, whatever lies closer to its centre, with the mean emission of the light area in
+// it (`emission_area`: that area) and the normal and material of the light holding most of it,
+// so a light quad just below a ceiling stays a light at every resolution and the voxels emit
+// the mesh's power. Lights take the supercover (26) voxels under either separation.
 // Candidates are enumerated per triangle along its dominant normal axis: for each voxel column
 // of its projected bounding box only the 1-3 voxels within the plane's thickness are tested,
 // so the cost is proportional to the triangle's area in voxels, not its bounding-box volume.
@@ -31,6 +36,9 @@
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
+
+#include <string>
+#include <vector>
 
 namespace vdbrad {
 
@@ -60,7 +68,11 @@ struct VoxelizeOptions
 /// `normal` (vec3s, world-space unit normals, active on the surface voxels), `albedo` (float, or
 /// vec3s when any material colour is not grey; only if the mesh has materials), `emission`
 /// (likewise; only if something emits), `specular` (float or vec3s) and `roughness` (float) when
-/// a material has `Ks` (and options.specular), and with keepSdf the level set `surface`.
+/// a material has `Ks` (and options.specular), `material_id` (Int32, background -1) when the
+/// mesh has groups (OBJ `o` / `g`), and with keepSdf the level set `surface`.
+/// @param warnings  if given, gets a line for each light that keeps no voxel of its own (an
+///        emitting triangle of zero area; one whose every voxel is held by a light facing
+///        another way), naming the first such triangle (1-based), its material and object
 /// @throw openvdb::ValueError bad options, a mesh with non-finite points or no triangle of
 ///        non-zero area, or an estimated voxel count above maxVoxels (the message gives the
 ///        estimate and the voxel size that would fit)
@@ -71,7 +83,12 @@ struct VoxelizeOptions
 /// openvdb::GridPtrVec grids = vdbrad::voxelizeMesh(vdbrad::readMesh("room.obj"), o);
 /// @endcode
 openvdb::GridPtrVec voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
-    openvdb::util::NullInterrupter* interrupt = nullptr);
+    openvdb::util::NullInterrupter* interrupt = nullptr,
+    std::vector<std::string>* warnings = nullptr);
+
+/// The prefix of the `material_id` grid's metadata naming its ids (TriangleMesh::groups):
+/// "vdbrad:material_name:3" holds the name of id 3.
+constexpr const char* kMaterialNameMeta = "vdbrad:material_name:";
 
 /// @brief The voxel size voxelizeMesh uses for @a mesh and @a options (world units).
 double voxelizeVoxelSize(const TriangleMesh& mesh, const VoxelizeOptions& options);
