@@ -1,10 +1,15 @@
 // Canonical-scene benchmark: how long each builder of grids/CanonicalGrids.h (`vdbrad make NAME`)
 // takes next to a deep copy of the grids it returns, in the same process: the cost of touching
-// its output once (ratios, not absolute times, are the result).
+// its output once (ratios, not absolute times, are the result). Then what reading a simulator's
+// double-precision fog costs: the cumulus' density as a DoubleGrid converted to float
+// (vdbrad::singlePrecision, what the contract does on read) against a deep copy of that double
+// grid and against building the cloud from the float grid.
 //
 //   build/benchmarks/bench_grids [resolution ...] [-- name ...]   (default 256 512, every scene)
 #include "BenchTiming.h"
 #include "grids/CanonicalGrids.h"
+#include "vdbrad/Cloud.h"
+#include "vdbrad/GridContract.h"
 
 #include <openvdb/openvdb.h>
 
@@ -60,6 +65,26 @@ main(int argc, char** argv)
             std::printf("%-16s %5d %11zu %9.3f %9.3f %7.2fx\n", name.c_str(), res, voxels, ours,
                 base, ours / base);
         }
+    }
+
+    std::printf("\n%-16s %5s %11s %9s %9s %8s %9s %8s\n", "double density", "res", "voxels",
+        "convert s", "copy s", "ratio", "cloud s", "ratio");
+    for (int res : resolutions) {
+        vdbrad::grids::BuildParams p;
+        p.res = res;
+        const openvdb::GridPtrVec grids = vdbrad::grids::findBuilder("cumulus")->build(p);
+        const auto density = openvdb::gridConstPtrCast<openvdb::FloatGrid>(
+            vdbrad::findGrid(grids, "density"));
+        auto twice = openvdb::DoubleGrid::create(
+            std::make_shared<openvdb::DoubleTree>(density->tree()));
+        twice->setName("density");
+        twice->setTransform(density->transform().copy());
+        openvdb::GridBase::ConstPtr converted;
+        const double ours = timeIt([&] { converted = vdbrad::singlePrecision(twice); });
+        const double copy = timeIt([&] { twice->deepCopyGrid(); });
+        const double cloud = timeIt([&] { vdbrad::buildCloud({density->deepCopy()}); });
+        std::printf("%-16s %5d %11zu %9.3f %9.3f %7.2fx %9.3f %7.2fx\n", "cumulus", res,
+            size_t(density->activeVoxelCount()), ours, copy, ours / copy, cloud, ours / cloud);
     }
     return 0;
 }
