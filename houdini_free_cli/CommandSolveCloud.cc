@@ -46,6 +46,12 @@ runSolveCloud(const Arguments& a)
     cloudOpts.extinctionScale = float(a.getFloat("extinction-scale"));
     cloudOpts.defaultAlbedo = float(a.getFloat("albedo"));
     cloudOpts.density = a.getString("density");
+    if (a.has("emission")) cloudOpts.emission = a.getString("emission");
+    cloudOpts.emissionScale = float(a.getFloat("emission-scale"));
+    {
+        const std::vector<double> c = numberList(a, "emission-color", 3, "r,g,b");
+        cloudOpts.emissionColour = openvdb::Vec3f(float(c[0]), float(c[1]), float(c[2]));
+    }
     CloudTransferOptions o;
     const std::vector<double> sun = numberList(a, "sun", 2, "zenith,azimuth in degrees");
     o.sunZenith = sun[0];
@@ -113,6 +119,11 @@ runSolveCloud(const Arguments& a)
     const Cloud cloud = forFile(label, [&] {
         return buildCloud(file.grids, cloudOpts, &progress);
     });
+    if (cloud.lostEmitters() > 0) {
+        warn(label, withCommas(cloud.lostEmitters()) + " voxels of '" + cloud.emissionName()
+            + "' emit where '" + cloud.densityName() + "' is 0 or inactive: the medium emits "
+            "through its extinction, so they add no light");
+    }
     const std::string memory = checkMemory(a, label,
         residentBytes(double(fileBytes(file) + cloud.memUsage() + scene.memUsage())),
         double(CloudTransfer::memoryEstimate(cloud, o, workerThreads())));
@@ -122,6 +133,7 @@ runSolveCloud(const Arguments& a)
         return solveCloud(cloud, o, &progress, session.control(memory), &ground, &radiosity);
     });
     intensity->setName(name);
+    recordEmission(*intensity, cloud, cloudOpts);
     openvdb::GridPtrVec outputs{intensity};
     if (ground) outputs.push_back(ground);
     if (radiosity) outputs.push_back(radiosity);

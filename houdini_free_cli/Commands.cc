@@ -301,6 +301,15 @@ commands()
                 kDensity,
                 OptionSpec{"extinction-scale", OptionType::Float, "1", "10",
                     "extinction per world unit = density x this"}.above(0),
+                {"emission", OptionType::String, "flame", "heat",
+                    "the fire's grid (float or double): the medium emits this x --emission-scale "
+                    "x --emission-color, radiance per world unit of path, the same in every "
+                    "direction (where the density is not 0); default `flame` where the file has "
+                    "one"},
+                OptionSpec{"emission-scale", OptionType::Float, "1", "20",
+                    "multiplies the emission grid"}.atLeast(0),
+                {"emission-color", OptionType::String, "1,1,1", "1,0.45,0.1",
+                    "linear RGB colour of the emission (not grey: an RGB solve)"},
                 OptionSpec{"irradiance", OptionType::Float, "1", "3",
                     "sun irradiance F0 on a plane normal to the beam"}.atLeast(0),
                 OptionSpec{"ground-albedo", OptionType::Float, "", "0.4",

@@ -1109,3 +1109,53 @@ TEST_F(CloudTest, RgbAlbedoIsSolvedChannelByChannel)
     // Whiter scatters more: the red channel (0.99) reflects more than the blue (0.2).
     EXPECT_GT(reflected[0], 2.f * reflected[2]);
 }
+
+// Volume emission (fire: Blender's and Houdini's `flame`) in a plane-parallel slab (a periodic
+// box one voxel wide) emitting epsilon per unit length, optical depth 40. Deep inside, the
+// radiance is the infinite medium's for any direction set, epsilon / sigma_a (the source
+// omega0 J + epsilon / sigma_t equals J there); a pure absorber sends
+// pi epsilon / sigma_t (1 - 2 E3(tau)) out of each face, 1 / (4 tau) of what it emits
+// (E3(40) ~ 1e-19); and the energy balances.
+TEST_F(CloudTest, EmittingSlabHasTheInfiniteMediumsRadianceInside)
+{
+    const double h = 0.1, sigma = 10.0;   // optical depth 1 per voxel
+    const int ny = 40;
+    for (float albedo : {0.f, 0.5f, 0.9f}) {
+        auto density = openvdb::FloatGrid::create(0.f);
+        density->setName("density");
+        density->setTransform(openvdb::math::Transform::createLinearTransform(h));
+        density->tree().fill(openvdb::CoordBBox(Coord(0), Coord(0, ny - 1, 0)), float(sigma), true);
+        density->tree().voxelizeActiveTiles();
+        auto flame = density->deepCopy();
+        flame->setName("flame");
+        for (auto it = flame->beginValueOn(); it; ++it) it.setValue(4.f);
+        CloudOptions co;
+        co.defaultAlbedo = albedo;
+        co.emissionScale = 0.5f;   // epsilon = 2 per world unit
+        const Cloud cloud = buildCloud({density, flame}, co);
+        EXPECT_EQ(cloud.emissionName(), "flame");
+        EXPECT_EQ(cloud.lostEmitters(), 0u);
+        CloudTransferOptions o;
+        o.periodic = true;
+        o.irradiance = 0.0;
+        o.directions = 300;
+        o.tolerance = 1e-7;
+        CloudTransfer transfer(cloud, o);
+        transfer.solve();
+        ASSERT_TRUE(transfer.converged()) << albedo;
+        const std::vector<float> J = transfer.meanIntensity();
+        const double infinite = 2.0 / ((1.0 - albedo) * sigma);
+        const int mid = cloud.voxels().find(Coord(0, ny / 2, 0));
+        const CloudBudget& b = transfer.budget();
+        std::printf("emitting slab, albedo %.1f: J mid %.7g (infinite medium %.7g), up %.6f "
+            "(pure absorber 1 / (4 tau) = %.6f), balance %.2g\n", albedo, J[size_t(mid)],
+            infinite, b.albedo, 1.0 / (4.0 * ny), b.balance());
+        EXPECT_NEAR(J[size_t(mid)], infinite, 1e-4 * infinite) << albedo;
+        EXPECT_NEAR(b.balance(), 0.0, 1e-5) << albedo;
+        EXPECT_DOUBLE_EQ(b.mediumEmitted, 1.0);   // no sun: all the light is the fire's
+        EXPECT_NEAR(b.albedo, b.transmittance, 1e-6) << albedo;   // symmetric
+        if (albedo == 0.f) {
+            EXPECT_NEAR(b.albedo, 1.0 / (4.0 * ny), 0.01 / (4.0 * ny));   // measured 0.16 %
+        }
+    }
+}

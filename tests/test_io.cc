@@ -469,3 +469,85 @@ TEST_F(ForeignGridsTest, UnusableGridsAreRefusedInOneLine)
         openvdb::Vec3d(0.5, 1.5, 0.5))});
     expectRefused(sh("vdbrad solve-cloud bright.vdb out.vdb" + mOptions), "albedo");
 }
+
+// A fire as Blender and Houdini write it: `density` and `flame`. The flame is read as the
+// medium's emission (radiance per world unit), so a solve with no sun is lit by it; a colour
+// gives an RGB solve whose channels are the grey one's times the colour; the render of the
+// solved file emits as the solve did (its settings are in the result's metadata); flame where
+// there is no density is named in a warning; a named emission grid that is missing is refused.
+TEST_F(ForeignGridsTest, FlameGridsEmitLight)
+{
+    const auto density = fog();
+    auto flame = openvdb::FloatGrid::create(0.f);
+    flame->setName("flame");
+    flame->setTransform(density->transform().copy());
+    for (int x = 3; x < 7; ++x) {
+        for (int y = 0; y < 4; ++y) {
+            for (int z = 3; z < 7; ++z) flame->tree().setValueOn({x, y, z}, 2.f);
+        }
+    }
+    write("fire.vdb", {density, flame});
+    const std::string opts = " --directions 40 --irradiance 0 --tolerance 1e-7 --quiet";
+    const auto grey = sh("vdbrad solve-cloud fire.vdb grey.vdb" + opts);
+    ASSERT_EQ(grey.status, 0) << grey.err;
+    const auto J = values("grey.vdb", "mean_intensity");
+    ASSERT_EQ(J.size(), 1000u);
+    float hottest = 0.f, coldest = 1e30f;
+    for (const auto& v : J) { hottest = std::max(hottest, v[0]); coldest = std::min(coldest, v[0]); }
+    EXPECT_GT(coldest, 0.f);                 // every voxel sees the fire
+    EXPECT_GT(hottest, 20.f * coldest);      // and the fire is brightest
+
+    const auto rgb = sh("vdbrad solve-cloud fire.vdb rgb.vdb --emission-color 1,0.5,0.25" + opts);
+    ASSERT_EQ(rgb.status, 0) << rgb.err;
+    const auto C = values("rgb.vdb", "mean_intensity");
+    ASSERT_EQ(C.size(), J.size());
+    for (size_t i = 0; i < J.size(); ++i) {
+        for (int c = 0; c < 3; ++c) {
+            const float k = c == 0 ? 1.f : (c == 1 ? 0.5f : 0.25f);
+            ASSERT_NEAR(C[i][c], k * J[i][0], 1e-6f * J[i][0]) << i << " " << c;
+        }
+    }
+    const VdbFile solved = readVdbFile(path("rgb.vdb"));
+    const auto result = findGrid(solved.grids, "mean_intensity");
+    EXPECT_EQ(result->metaValue<std::string>("vdbrad:emission"), "flame");
+    EXPECT_EQ(result->metaValue<openvdb::Vec3f>("vdbrad:emission_color"),
+        openvdb::Vec3f(1.f, 0.5f, 0.25f));
+    // Rendered, the fire shows in its colour without any option repeated (the image is the grey
+    // one times the colour), and brighter than the scattered light alone (flame left out).
+    const auto lit = sh("vdbrad render grey.vdb lit.exr --res 32x32 --png lit.png --quiet");
+    EXPECT_EQ(lit.status, 0) << lit.err;
+    RenderOptions ro;
+    ro.width = ro.height = 32;
+    auto sum = [&](const openvdb::GridPtrVec& grids) {
+        openvdb::Vec3d total(0.0);
+        for (const auto& p : renderImage(grids, ro).pixels) total += openvdb::Vec3d(p);
+        return total;
+    };
+    const openvdb::Vec3d orange = sum(solved.grids);
+    VdbFile plain = readVdbFile(path("grey.vdb"));
+    const openvdb::Vec3d white = sum(plain.grids);
+    EXPECT_NEAR(orange[1], 0.5 * white[1], 1e-5 * white[1]);
+    EXPECT_NEAR(orange[2], 0.25 * white[2], 1e-5 * white[2]);
+    plain.grids.erase(std::remove_if(plain.grids.begin(), plain.grids.end(),
+        [](const openvdb::GridBase::Ptr& g) { return g->getName() == "flame"; }),
+        plain.grids.end());
+    for (auto& g : plain.grids) g->removeMeta("vdbrad:emission");   // as solved without fire
+    const openvdb::Vec3d scattered = sum(plain.grids);
+    EXPECT_GT(white[0], 1.1 * scattered[0]);   // measured 1.20 (a conservative fog: J is most of it)
+    std::printf("fire rendered: %.4g with its emission, %.4g scattered light alone\n", white[0],
+        scattered[0]);
+
+    // Flame outside the smoke emits nothing here, and is said so.
+    auto spill = flame->deepCopy();
+    spill->tree().setValueOn({20, 0, 0}, 5.f);
+    write("spill.vdb", {density, spill});
+    const auto warned = sh("vdbrad solve-cloud spill.vdb spill_out.vdb --directions 40 "
+        "--irradiance 0");
+    EXPECT_EQ(warned.status, 0) << warned.err;
+    EXPECT_NE(warned.err.find("vdbrad: warning: spill.vdb: 1 voxels of 'flame' emit where "
+        "'density' is 0 or inactive"), std::string::npos) << warned.err;
+    expectRefused(sh("vdbrad solve-cloud fire.vdb out.vdb --emission heat" + opts),
+        "no emission grid named 'heat'");
+    expectRefused(sh("vdbrad solve-cloud fire.vdb out.vdb --emission-color 1,-1,1" + opts),
+        "emission scale and colour must be >= 0");
+}

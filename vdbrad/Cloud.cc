@@ -7,12 +7,13 @@
 namespace vdbrad {
 
 Cloud::Cloud(openvdb::math::Transform::Ptr transform, VoxelIndex voxels,
-    std::vector<float> extinction, Attribute albedo, std::string densityName)
+    std::vector<float> extinction, Attribute albedo, std::string densityName, Attribute emission)
     : mTransform(std::move(transform))
     , mVoxels(std::move(voxels))
     , mExtinction(std::move(extinction))
     , mAlbedo(std::move(albedo))
     , mDensityName(std::move(densityName))
+    , mEmission(std::move(emission))
 {
 }
 
@@ -20,8 +21,63 @@ size_t
 Cloud::memUsage() const
 {
     return mVoxels.size() * (sizeof(openvdb::Coord) + sizeof(float))
-        + size_t(mVoxels.tree().memUsage()) + mAlbedo.memUsage();
+        + size_t(mVoxels.tree().memUsage()) + mAlbedo.memUsage() + mEmission.memUsage();
 }
+
+namespace {
+
+// CloudOptions::emission into cloud.mEmission (see the file comment of Cloud.h).
+void
+readEmission(Cloud& cloud, const openvdb::GridPtrVec& grids, const CloudOptions& options)
+{
+    const openvdb::Vec3f& colour = options.emissionColour;
+    if (!(options.emissionScale >= 0.f) || !std::isfinite(options.emissionScale)
+        || !(colour[0] >= 0.f && colour[1] >= 0.f && colour[2] >= 0.f)
+        || !std::isfinite(colour[0] + colour[1] + colour[2])) {
+        OPENVDB_THROW(openvdb::ValueError, "emission scale and colour must be >= 0 and finite, "
+            "got " << options.emissionScale << " and " << colour);
+    }
+    const std::string name = options.emission.empty() ? std::string(names::kFlame)
+                                                      : options.emission;
+    const openvdb::GridBase::ConstPtr found = findGrid(grids, name);
+    if (!found) {
+        if (options.emission.empty()) return;   // nothing burns
+        OPENVDB_THROW(openvdb::KeyError, "no emission grid named '" << name << "'");
+    }
+    if (!found->isType<openvdb::FloatGrid>() && !found->isType<openvdb::DoubleGrid>()) {
+        OPENVDB_THROW(openvdb::TypeError, "grid '" << name << "' (emission) has type "
+            << found->valueType() << ", expected float or double");
+    }
+    const auto grid = openvdb::gridConstPtrCast<openvdb::FloatGrid>(singlePrecision(found));
+    checkSameTransform(*grid, *findGrid(grids, cloud.densityName()));
+    const Attribute strength = Attribute::sample(*grid, cloud.voxels(), name, 0.f);
+    const bool grey = colour[0] == colour[1] && colour[1] == colour[2];
+    std::vector<float> g(grey ? cloud.size() : 0);
+    std::vector<openvdb::Vec3f> rgb(grey ? 0 : cloud.size());
+    size_t kept = 0;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+        // The medium emits through its extinction: none where it has none.
+        const double e = cloud.extinction(i) > 0.f
+            ? double(strength.grey(i)) * double(options.emissionScale) : 0.0;
+        if (e > double(std::numeric_limits<float>::max()) / std::max(1.f, colour[0] + colour[1]
+                + colour[2])) {
+            OPENVDB_THROW(openvdb::ValueError, "emission at voxel "
+                << formatCoord(cloud.voxels().coord(i)) << " overflows: " << strength.grey(i)
+                << " x scale " << options.emissionScale);
+        }
+        if (e > 0.0) ++kept;
+        if (grey) g[i] = float(e) * colour[0];
+        else rgb[i] = openvdb::Vec3f(float(e)) * colour;
+    }
+    size_t emitting = 0;
+    for (auto it = grid->cbeginValueOn(); it; ++it) {
+        if (*it > 0.f) emitting += it.isVoxelValue() ? 1 : size_t(it.getVoxelCount());
+    }
+    cloud.setEmission(grey ? Attribute::fromGrey(std::move(g)) : Attribute::fromRgb(std::move(rgb)),
+        name, emitting > kept ? emitting - kept : 0);
+}
+
+} // namespace
 
 Cloud
 buildCloud(const openvdb::GridPtrVec& grids, const CloudOptions& options,
@@ -76,8 +132,33 @@ buildCloud(const openvdb::GridPtrVec& grids, const CloudOptions& options,
     Attribute albedo = roles.albedo
         ? Attribute::sample(*roles.albedo, index, names::kAlbedo, 0.f, 1.f)
         : Attribute(options.defaultAlbedo);
-    return Cloud(density.transform().copy(), std::move(index), std::move(extinction),
+    Cloud cloud(density.transform().copy(), std::move(index), std::move(extinction),
         std::move(albedo), density.getName());
+    readEmission(cloud, grids, options);
+    return cloud;
+}
+
+void
+recordEmission(openvdb::GridBase& result, const Cloud& cloud, const CloudOptions& options)
+{
+    if (cloud.emissionName().empty()) return;
+    result.insertMeta("vdbrad:emission", openvdb::StringMetadata(cloud.emissionName()));
+    result.insertMeta("vdbrad:emission_scale", openvdb::FloatMetadata(options.emissionScale));
+    result.insertMeta("vdbrad:emission_color", openvdb::Vec3SMetadata(options.emissionColour));
+}
+
+CloudOptions
+emissionAsSolved(const openvdb::GridBase& result, CloudOptions options)
+{
+    const auto name = result.getMetadata<openvdb::StringMetadata>("vdbrad:emission");
+    const auto scale = result.getMetadata<openvdb::FloatMetadata>("vdbrad:emission_scale");
+    const auto colour = result.getMetadata<openvdb::Vec3SMetadata>("vdbrad:emission_color");
+    if (name && scale && colour) {
+        options.emission = name->value();
+        options.emissionScale = scale->value();
+        options.emissionColour = colour->value();
+    }
+    return options;
 }
 
 Cloud
@@ -108,20 +189,12 @@ tileCloud(const Cloud& cloud, const openvdb::Coord& copies, std::vector<uint32_t
     }
     std::vector<float> extinction(tiled.size());
     for (size_t i = 0; i < tiled.size(); ++i) extinction[i] = cloud.extinction(from[i]);
-    const Attribute& a = cloud.albedo();
-    Attribute albedo(a.uniformValue());
-    if (a.isRgb()) {
-        std::vector<openvdb::Vec3f> v(tiled.size());
-        for (size_t i = 0; i < v.size(); ++i) v[i] = a.rgb(from[i]);
-        albedo = Attribute::fromRgb(std::move(v));
-    } else if (!a.isUniform()) {
-        std::vector<float> v(tiled.size());
-        for (size_t i = 0; i < v.size(); ++i) v[i] = a.grey(from[i]);
-        albedo = Attribute::fromGrey(std::move(v));
-    }
+    Attribute albedo = cloud.albedo().subset(from), emission = cloud.emission().subset(from);
     if (source) *source = std::move(from);
-    return Cloud(cloud.transform().copy(), std::move(tiled), std::move(extinction),
+    Cloud result(cloud.transform().copy(), std::move(tiled), std::move(extinction),
         std::move(albedo), cloud.densityName());
+    result.setEmission(std::move(emission), cloud.emissionName(), cloud.lostEmitters());
+    return result;
 }
 
 } // namespace vdbrad

@@ -49,7 +49,8 @@ float channelOf(const Attribute& a, size_t i, int c)
 // Whether the problem has colours: an RGB albedo (medium or surfaces) or surface emission.
 bool isRgb(const Cloud& cloud, const CloudTransferOptions& o)
 {
-    return cloud.albedo().isRgb() || (o.surfaces && o.surfaces->isRgb());
+    return cloud.albedo().isRgb() || cloud.emission().isRgb()
+        || (o.surfaces && o.surfaces->isRgb());
 }
 // What a line carries: its radiance, whether it has met its first voxel yet (periodic boundaries
 // give that voxel the light re-entering the box) and the last voxel it met (where it leaves).
@@ -202,7 +203,7 @@ struct CloudTransfer::Impl
     std::vector<double> surfaceDirect, surfaceLanded, surfaceNorm;
     std::vector<double> surfaceArea;   // A_v, voxel faces (FogSurfaces.h)
     std::vector<uint8_t> enclosed;     // per surface voxel: it faces a closed cavity
-    double backDirect = 0.0, emitted = 0.0;
+    double backDirect = 0.0, emitted = 0.0, mediumEmitted = 0.0;
     // The areas A_v: one sweep of every direction applying the surfaces' rule alone.
     std::vector<double> surfaceAreas() const;
     // What surface voxel v sends: B_v / Z_v, B_v = E_v + rho_v (direct + landed) / A_v.
@@ -216,6 +217,9 @@ struct CloudTransfer::Impl
     std::vector<float> kappa;        // optical depth per voxel length
     std::vector<float> omega;        // single-scattering albedo
     std::vector<float> beamJ;        // mean radiance of the direct beam, D / (4 pi kappa)
+    // The medium's emission as a source, epsilon / sigma_t (empty where nothing emits): fixed,
+    // like the beam's first scattering, and gathered with it.
+    std::vector<float> emitSource;
     std::vector<double> deposited;   // beam power lost per voxel
     double incident = 0.0, directOut = 0.0;   // at the internal irradiance (see outputScale)
     double outputScale = 1.0;        // F0 / the internal irradiance: a power of two
@@ -252,6 +256,7 @@ struct CloudTransfer::Impl
     {
         const std::array<std::vector<float>, SweepSchedule::kPatterns>& S;
         const std::array<std::vector<float>, SweepSchedule::kPatterns>& B;
+        const std::array<std::vector<float>, SweepSchedule::kPatterns>& E;   // emission
         const std::vector<double>& groundEmits;
         std::array<std::vector<float>, SweepSchedule::kGroups> G;
         std::array<std::array<double, 2>, SweepSchedule::kGroups> escaped{};
@@ -447,6 +452,21 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     for (size_t i = 0; i < n; ++i) {
         impl.beamJ[i] = impl.kappa[i] > 0.f
             ? float(impl.deposited[i] / (4.0 * kPi * double(impl.kappa[i]))) : 0.f;
+    }
+    if (!given.emission().isZero()) {
+        // epsilon / sigma_t with sigma_t as the sweeps see it (delta-M scaled); copies, the
+        // ground's layer and surface voxels take their source voxel's (none for the last two).
+        impl.emitSource.assign(n, 0.f);
+        double emitted = 0.0;
+        for (size_t i = 0; i < n; ++i) {
+            const uint32_t from = impl.copyOf.empty() ? uint32_t(i) : impl.copyOf[i];
+            if (from == GroundLayer::kGround || !(impl.kappa[i] > 0.f)) continue;
+            const double e = channelOf(given.emission(), from, options.channel) * h
+                / impl.outputScale;
+            impl.emitSource[i] = float(e / double(impl.kappa[i]));
+            emitted += 4.0 * kPi * e;   // 4 pi epsilon V, in the beam's units (voxel faces)
+        }
+        impl.mediumEmitted = emitted;
     }
     impl.diffuseJ.assign(n, 0.f);
     impl.moments.assign(n * size_t(impl.M), 0.f);
@@ -652,6 +672,7 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
     const SweepSchedule::Pattern& pattern = schedule->pattern(p);
     const std::vector<float>& S = sw.S[p];
     const std::vector<float>& B = sw.B[p];
+    const float* E = sw.E[p].empty() ? nullptr : sw.E[p].data();
     const std::vector<float>& kappaP = kappaOrdered[p];
     std::vector<float>& G = sw.G[size_t(g)];
     std::array<double, 2>& escaped = sw.escaped[size_t(g)];
@@ -828,6 +849,7 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
                     s0 = S[size_t(x) * M] * y[0];
                     if (M > 1) r = batch.R[size_t(x) * batch.width + column + sense];
                     b = B[x] * beamT[sense];
+                    if (E) b += E[x];   // isotropic, fixed: gathered whole, as the beam's
                 }
                 const float s = s0 + r + b;
                 if constexpr (decltype(lin)::value) {
@@ -994,11 +1016,12 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         }
     });
     // The sources in each pattern's order, so that the sweeps read them sequentially.
-    std::array<std::vector<float>, SweepSchedule::kPatterns> S, B;
+    std::array<std::vector<float>, SweepSchedule::kPatterns> S, B, E;
     for (size_t p = 0; p < S.size(); ++p) {
         if (schedule.pattern(p).empty()) continue;
         schedule.toPatternOrder(p, source, S[p], M);
         schedule.toPatternOrder(p, beamSource, B[p]);
+        if (!impl.emitSource.empty()) schedule.toPatternOrder(p, impl.emitSource, E[p]);
     }
     // What each ground cell reflects in this sweep: its albedo times what reached it.
     const size_t cells = impl.groundDiffuse.size();
@@ -1011,7 +1034,7 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     const size_t surfaceCount = impl.surfaceLanded.size();
     std::vector<double> surfaceEmits(surfaceCount);
     for (size_t v = 0; v < surfaceCount; ++v) surfaceEmits[v] = impl.surfaceSends(v);
-    Impl::Sweep sw{S, B, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {},
+    Impl::Sweep sw{S, B, E, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {},
         surfaceEmits, {}, {}};
     // Under MPI each rank sweeps its own groups (Distribution.h).
     const Distribution& ranks = Distribution::world();
@@ -1169,10 +1192,11 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
             up0 += e[1];
         }
     }
-    const double total = impl.incident + impl.emitted;
+    const double total = impl.incident + impl.emitted + impl.mediumEmitted;
     const double in = total > 0.0 ? total : 1.0;
     mBudget.incident = total * impl.outputScale;
-    mBudget.emitted = impl.emitted / in;
+    mBudget.emitted = (impl.emitted + impl.mediumEmitted) / in;
+    mBudget.mediumEmitted = impl.mediumEmitted / in;
     mBudget.surfaceAbsorptance = surfaceAbsorbed / in;
     mBudget.albedo = up0 / in;
     mBudget.transmittance = (down0 + impl.directOut + onGround) / in;
@@ -1215,6 +1239,7 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     perVoxel += 4 * 4;                              // kappa in each pattern's order
     perVoxel += 4 * M + 4 * M + 4;                  // moments, their source, the beam's source
     perVoxel += 4 * (4 * M + 4);                    // the sources in each pattern's order
+    if (!cloud.emission().isZero()) perVoxel += 4 + 4 * 4;   // emission's source, and ordered
     perVoxel += size_t(Impl::kGroups) * 4 * M;      // gathered moments per group
     perVoxel += 8 * M;                              // their double sum
     perVoxel += t * (4 + 16 + 8);                   // per thread: slots, line state, 1 - e^-tau
@@ -1266,6 +1291,7 @@ CloudTransfer::fingerprint() const
     h = hashBytes(options, sizeof options, h);
     if (impl.ground) h = hashBytes(&impl.groundAlbedo, sizeof(double), h);
     if (impl.surfaces) h = impl.surfaces->hash(h);
+    h = hashBytes(impl.emitSource.data(), impl.emitSource.size() * sizeof(float), h);
     return h;
 }
 
@@ -1307,9 +1333,10 @@ CloudTransfer::restoreState(const SolverState& state)
     if (impl.surfaces) {
         impl.surfaceLanded = state.get<double>("surfaceLanded", impl.surfaceLanded.size());
         mBudget.surfaceAbsorptance = state.get<double>("surfaceAbsorptance", 1)[0];
-        const double total = impl.incident + impl.emitted;
-        mBudget.emitted = total > 0.0 ? impl.emitted / total : 0.0;
     }
+    const double emitted = impl.emitted + impl.mediumEmitted;
+    mBudget.emitted = emitted > 0.0 ? emitted / (impl.incident + emitted) : 0.0;
+    mBudget.mediumEmitted = emitted > 0.0 ? impl.mediumEmitted / (impl.incident + emitted) : 0.0;
     if (impl.mixer) impl.mixer->restore(state, "anderson.");
     mBudget.incident = budget[0];
     mBudget.albedo = budget[1];
@@ -1465,9 +1492,10 @@ budgetLine(const CloudBudget& b, const CloudTransferOptions& options)
        << b.directTransmittance << "), absorptance " << b.absorptance;
     if (options.groundAlbedo) os << ", reflected by the ground " << b.groundReflected;
     if (options.surfaces) {
-        os << " (left the box), emitted by the surfaces " << b.emitted << ", absorbed by them "
-           << b.surfaceAbsorptance;
+        os << " (left the box), emitted by the surfaces " << b.emitted - b.mediumEmitted
+           << ", absorbed by them " << b.surfaceAbsorptance;
     }
+    if (b.mediumEmitted > 0.0) os << ", emitted by the medium " << b.mediumEmitted;
     os << "; balance " << b.balance();
     return os.str();
 }

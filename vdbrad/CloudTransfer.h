@@ -184,8 +184,10 @@ struct CloudBudget
     /// Reflected back up by the ground: its albedo times what reached it (0 without a ground);
     /// (1 - ground albedo) x what reached it is what the ground absorbed.
     double groundReflected = 0.0;
-    /// Emitted by the surfaces (CloudTransferOptions::surfaces), included in `incident`.
+    /// Emitted by the surfaces (CloudTransferOptions::surfaces) and the medium (Cloud::emission),
+    /// included in `incident`; mediumEmitted: the medium's part.
     double emitted = 0.0;
+    double mediumEmitted = 0.0;
     /// Absorbed by the surfaces: (1 - their albedo) x what lands on their fronts, and all that
     /// reaches their backs.
     double surfaceAbsorptance = 0.0;

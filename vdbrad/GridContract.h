@@ -39,6 +39,8 @@ constexpr const char* kEmissionArea = "emission_area";
 constexpr const char* kSpecular = "specular";
 constexpr const char* kRoughness = "roughness";
 constexpr const char* kDensity = "density";
+/// A fog's emission strength where none is named (Blender's and Houdini's fire; Cloud.h).
+constexpr const char* kFlame = "flame";
 /// Albedo where there is no `albedo` grid: Houdini's colour attribute, then Blender's.
 constexpr const char* kHoudiniColour = "Cd";
 constexpr const char* kBlenderColour = "color";

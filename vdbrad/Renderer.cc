@@ -608,11 +608,13 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
         OPENVDB_THROW(openvdb::ValueError, "a mesh shows a solved surface, and the file has none");
     }
     if (roles.density) {
-        mCloud = buildCloud(grids, options.cloud, interrupt);
         if (options.cloudSource.empty()) {
             OPENVDB_THROW(openvdb::ValueError, "the cloud source grid name is empty");
         }
         const openvdb::GridBase::ConstPtr J = findGrid(grids, options.cloudSource);
+        // The emission as the solve read it (its options are in the solved grid).
+        mCloud = buildCloud(grids, J ? emissionAsSolved(*J, options.cloud) : options.cloud,
+            interrupt);
         if (J) {
             const auto& density = *findGrid(grids, options.cloud.density);
             if (J->transform() != density.transform()) {
@@ -621,17 +623,24 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
             }
             const Attribute j = Attribute::sample(*J, mCloud.voxels(), options.cloudSource, 0.f);
             const Attribute& albedo = mCloud.albedo();
+            // What the medium sends towards the eye per unit of extinction: albedo x J, and
+            // its own emission, epsilon / sigma_t (Cloud.h).
+            const Attribute& emission = mCloud.emission();
+            auto emitted = [&](size_t i) {
+                return mCloud.extinction(i) > 0.f ? emission.rgb(i) / mCloud.extinction(i)
+                                                  : Vec3f(0.f);
+            };
             const size_t n = mCloud.size();
-            if (j.isRgb() || albedo.isRgb()) {
+            if (j.isRgb() || albedo.isRgb() || emission.isRgb()) {
                 std::vector<Vec3f> s(n);
                 for (size_t i = 0; i < n; ++i) {
                     const Vec3f a = albedo.rgb(i), v = j.rgb(i);
-                    s[i] = Vec3f(a[0] * v[0], a[1] * v[1], a[2] * v[2]);
+                    s[i] = Vec3f(a[0] * v[0], a[1] * v[1], a[2] * v[2]) + emitted(i);
                 }
                 mSource = Attribute::fromRgb(std::move(s));
             } else {
                 std::vector<float> s(n);
-                for (size_t i = 0; i < n; ++i) s[i] = albedo.grey(i) * j.grey(i);
+                for (size_t i = 0; i < n; ++i) s[i] = albedo.grey(i) * j.grey(i) + emitted(i)[0];
                 mSource = Attribute::fromGrey(std::move(s));
             }
         } else {
