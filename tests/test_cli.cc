@@ -41,6 +41,17 @@ write(const std::string& path, const openvdb::GridPtrVec& grids)
     writeVdbFile(f, path);
 }
 
+// Whether @a text holds one of the '|'-separated @a phrases.
+bool
+saysOneOf(const std::string& text, const std::string& phrases)
+{
+    std::istringstream in(phrases);
+    for (std::string phrase; std::getline(in, phrase, '|');) {
+        if (text.find(phrase) != std::string::npos) return true;
+    }
+    return false;
+}
+
 } // namespace
 
 TEST_F(CliTest, MakePipedIntoInfoDescribesTheCornellBox)
@@ -135,7 +146,10 @@ TEST_F(CliTest, EachMalformedInputGivesOneErrorLineAndNoOutput)
     const std::vector<Case> cases = {
         {"not a VDB file", text("just some text\n"), "not a VDB file"},
         {"empty file", text(""), "empty file"},
-        {"truncated file", text(good.substr(0, good.size() / 2)), "truncated"},
+        // Cut inside the voxel data, OpenVDB 10's reader may take garbage for a buffer size:
+        // it then says "truncated", or dies in the crash guard's child (a sanitizer's
+        // allocator aborts on the request): "corrupt VDB data". Either is one line, exit 1.
+        {"truncated file", text(good.substr(0, good.size() / 2)), "truncated|corrupt VDB data"},
         {"missing required grid", grids({like<openvdb::FloatGrid>(*n, "temperature", 1.f)}),
             "no surface"},
         {"wrong grid type", grids({floatNormal}), "has type float, expected vec3s"},
@@ -158,7 +172,7 @@ TEST_F(CliTest, EachMalformedInputGivesOneErrorLineAndNoOutput)
         EXPECT_EQ(r.status, 1) << c.name;
         ASSERT_EQ(r.errLines().size(), 1u) << c.name << ":\n" << r.err;
         EXPECT_EQ(r.errLines()[0].rfind("vdbrad: error: bad.vdb: ", 0), 0u) << c.name << ": " << r.err;
-        EXPECT_NE(r.err.find(c.what), std::string::npos) << c.name << ": " << r.err;
+        EXPECT_TRUE(saysOneOf(r.err, c.what)) << c.name << ": " << r.err;
         EXPECT_FALSE(exists(out)) << c.name;
         EXPECT_EQ(slurp(in), before) << c.name << ": input changed";
         EXPECT_EQ(r.out, "") << c.name;
