@@ -258,6 +258,33 @@ cases()
         return cloud("step-cloud", 32, hgDefaults(60.0), 0.99f);
     }});
 
+    // A ground under the slab, and fire (a `flame` grid) in the cumulus, RGB-coloured.
+    all.push_back({"slab-isotropic-periodic-ground", [=] {
+        CloudTransferOptions o = cbase();
+        o.periodic = true;
+        o.groundAlbedo = 0.4;
+        return cloud("slab", 16, o);
+    }});
+    all.push_back({"cumulus-fire-open", [=] {
+        grids::BuildParams p;
+        p.res = 16;
+        openvdb::GridPtrVec g = grids::findBuilder("cumulus")->build(p);
+        const auto density = openvdb::gridPtrCast<openvdb::FloatGrid>(g.front());
+        auto flame = density->deepCopy();
+        flame->setName("flame");
+        // Fire in the lower half: light that crosses the cloud to reach the top.
+        for (auto it = flame->beginValueOn(); it; ++it) it.setValue(it.getCoord().y() < 8 ? 3.f : 0.f);
+        g.push_back(flame);
+        CloudOptions co;
+        co.emissionScale = 0.5f;
+        co.emissionColour = openvdb::Vec3f(1.f, 0.5f, 0.25f);
+        const Cloud c = buildCloud(g, co);
+        CloudTransfer transfer(c, cbase());
+        transfer.solve();
+        uint64_t h = hashOf(transfer.residuals(), hashBytes("fire", 4));
+        return hashOf(transfer.meanIntensity(), h);
+    }});
+
     // Monte Carlo: stored rays, iterations, a final gather.
     all.push_back({"cornell-rgb-montecarlo", [] {
         const Scene scene = test::canonicalScene("cornell", 16);
@@ -325,7 +352,9 @@ hashFile(const std::string& path)
     for (const auto& g : *grids) byName[g->getName()] = g;
     uint64_t h = hashBytes("file", 4);
     for (const auto& [name, g] : byName) {
-        if (name != "radiosity" && name != "mean_intensity") continue;
+        // The solvers' outputs (the inputs pass through unchanged).
+        if (name != "radiosity" && name != "mean_intensity" && name != "specular_radiosity"
+            && name != "ground_irradiance") continue;
         h = hashBytes(name.data(), name.size(), h);
         if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(g)) {
             for (auto it = f->cbeginValueOn(); it; ++it) {
@@ -354,14 +383,33 @@ class GoldenToolTest : public test::ToolTest {};
 // uninterrupted bits: test_cli, ResumingAKilledSolveFromItsCheckpointGivesTheUninterruptedBits).
 TEST_F(GoldenToolTest, ToolSolvesGiveTheirRecordedBits)
 {
-    const std::vector<std::pair<std::string, std::string>> runs = {
+    const std::string glossyMesh = VDBRAD_SOURCE_DIR "/samples/meshes/glossy_cornell.obj";
+    std::vector<std::pair<std::string, std::string>> runs = {
         {"tool-solve", "vdbrad make cornell c.vdb --res 24 && vdbrad solve c.vdb o.vdb "
             "--directions 100 --tolerance 1e-4 --quiet"},
         {"tool-solve-50", "vdbrad make cornell c.vdb --res 24 && vdbrad solve c.vdb o.vdb "
             "--directions 100 --tolerance 0 --iterations 50 --quiet"},
         {"tool-solve-cloud", "vdbrad make slab s.vdb --res 12 && vdbrad solve-cloud s.vdb o.vdb "
             "--directions 60 --periodic --iterations 8 --quiet"},
+        {"tool-solve-glossy", "vdbrad voxelize '" + glossyMesh + "' g.vdb --res 16 --quiet && "
+            "vdbrad solve g.vdb o.vdb --directions 60 --iterations 4 --quiet"},
+        {"tool-solve-cloud-ground", "vdbrad make slab s.vdb --res 12 && vdbrad solve-cloud s.vdb "
+            "o.vdb --directions 60 --periodic --ground-albedo 0.4 --iterations 8 --quiet"},
+        {"tool-solve-cloud-hg", "vdbrad make cumulus k.vdb --res 16 && vdbrad solve-cloud k.vdb "
+            "o.vdb --directions 60 --g 0.7 --iterations 6 --quiet"},
     };
+#ifdef VDBRAD_MPIEXEC
+    // Two MPI ranks: direction subsets (surfaces, clouds) and slabs of the scene.
+    const std::string mpirun = std::string("'") + VDBRAD_MPIEXEC
+        + "' --oversubscribe --allow-run-as-root -np 2 '" + VDBRAD_CLI_PATH + "' ";
+    runs.push_back({"tool-solve-2-ranks", "vdbrad make cornell c.vdb --res 24 && " + mpirun
+        + "solve c.vdb o.vdb --directions 100 --tolerance 0 --iterations 20 --quiet"});
+    runs.push_back({"tool-solve-2-slabs", "vdbrad make cornell c.vdb --res 24 && " + mpirun
+        + "solve c.vdb o.vdb --directions 100 --tolerance 0 --iterations 20 --distribute slabs "
+        "--quiet"});
+    runs.push_back({"tool-solve-cloud-2-ranks", "vdbrad make cumulus k.vdb --res 16 && " + mpirun
+        + "solve-cloud k.vdb o.vdb --directions 60 --iterations 6 --accelerate anderson --quiet"});
+#endif
     const char* update = std::getenv("VDBRAD_UPDATE_GOLDEN");
     const std::map<std::string, std::string> golden = readGolden(kToolGoldenFile);
     std::ostringstream lines;
