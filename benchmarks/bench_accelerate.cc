@@ -6,7 +6,7 @@
 //
 //   build/benchmarks/bench_accelerate [res=32] [directions=300] [target=1e-4]
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>

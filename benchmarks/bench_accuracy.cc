@@ -5,7 +5,7 @@
 //
 //   build/benchmarks/bench_accuracy [res ...]      (default 32 64 128)
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <chrono>

@@ -18,8 +18,8 @@
 //                                the time ratio auto / none)
 //                                [source=constant|linear] (CloudTransferOptions::source)
 //                                [weights=cells|harmonic] (CloudTransferOptions::harmonicWeights)
-#include "vdbrad/Cloud.h"
-#include "vdbrad/CloudTransfer.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/scene/Cloud.h"
 
 #include "../tests/CloudReference.h"
 

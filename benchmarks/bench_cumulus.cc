@@ -8,8 +8,8 @@
 //   build/benchmarks/bench_cumulus [res=64] [directions=auto,...] (comma-separated: one solve
 //       each) [g=0.85] [zenith=40] [photons=2000000] [optical diameter tau=-1 (the builder's)]
 //       [ground=none]
-#include "vdbrad/Cloud.h"
-#include "vdbrad/CloudTransfer.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/scene/Cloud.h"
 
 #include "BenchTiming.h"
 

@@ -7,7 +7,7 @@
 //   build/benchmarks/bench_direct [res]      (default 128)
 #include "BenchTiming.h"
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>

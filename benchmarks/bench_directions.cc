@@ -7,7 +7,7 @@
 //
 //   build/benchmarks/bench_directions [radius ...]      (default 25 50 100 200 400)
 #include "BenchTiming.h"
-#include "vdbrad/DirectionSet.h"
+#include "vdbrad/sweep/DirectionSet.h"
 
 #include <algorithm>
 #include <chrono>

@@ -18,9 +18,9 @@
 //   build/benchmarks/bench_extremes enclosure 256 512 -1300
 #include "grids/CanonicalGrids.h"
 #include "tests/DenseRegions.h"
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/Enclosure.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/surface/RadiositySolver.h"
+#include "vdbrad/sweep/Enclosure.h"
 #include "vdbrad/vdbrad.h"
 
 #include <sys/resource.h>

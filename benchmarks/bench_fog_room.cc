@@ -9,11 +9,11 @@
 //    the voxels and channels, and CPU seconds (user + sys) for each.
 // 2. The foggy room (make cornell --tau): per channel, iterations, energy balance, what the fog
 //    and the walls absorb and what leaves through the open front; CPU seconds.
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/DirectLight.h"
-#include "vdbrad/MonteCarloSolver.h"
-#include "vdbrad/RadiositySolver.h"
-#include "vdbrad/Scene.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/reference/MonteCarloSolver.h"
+#include "vdbrad/scene/Scene.h"
+#include "vdbrad/surface/DirectLight.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "grids/CanonicalGrids.h"
 #include "BenchTiming.h"
 

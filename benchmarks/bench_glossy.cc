@@ -17,11 +17,12 @@
 // hemisphere (never a fit sample). Times: best of 3 (BenchTiming.h).
 #include "BenchTiming.h"
 
-#include "vdbrad/Brdf.h"
-#include "vdbrad/ControlPoints.h"
-#include "vdbrad/RadiositySolver.h"
-#include "vdbrad/SphericalFit.h"
-#include "vdbrad/SphericalHarmonics.h"
+#include "vdbrad/core/Constants.h"
+#include "vdbrad/glossy/Brdf.h"
+#include "vdbrad/glossy/ControlPoints.h"
+#include "vdbrad/glossy/SphericalFit.h"
+#include "vdbrad/glossy/SphericalHarmonics.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>
@@ -37,7 +38,6 @@ using openvdb::Vec3d;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 struct Lobe
 {

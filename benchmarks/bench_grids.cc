@@ -8,8 +8,8 @@
 //   build/benchmarks/bench_grids [resolution ...] [-- name ...]   (default 256 512, every scene)
 #include "BenchTiming.h"
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/Cloud.h"
-#include "vdbrad/GridContract.h"
+#include "vdbrad/core/GridContract.h"
+#include "vdbrad/scene/Cloud.h"
 
 #include <openvdb/openvdb.h>
 

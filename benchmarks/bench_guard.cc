@@ -1,4 +1,4 @@
-// Crash-guard benchmark (vdbrad/GridIO.h): what parsing untrusted bytes in a forked child first
+// Crash-guard benchmark (vdbrad/core/GridIO.h): what parsing untrusted bytes in a forked child first
 // costs, and how long the guard waits for a child that hangs, each against a baseline run in the
 // same process (ratios, not absolute times, are the result).
 //
@@ -12,8 +12,8 @@
 //   build/benchmarks/bench_guard [resolution ...]      (default 128 256)
 #include "BenchTiming.h"
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/CrashGuard.h"
-#include "vdbrad/GridIO.h"
+#include "vdbrad/core/CrashGuard.h"
+#include "vdbrad/core/GridIO.h"
 
 #include <openvdb/io/Stream.h>
 

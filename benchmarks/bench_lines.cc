@@ -4,8 +4,8 @@
 //
 //   build/benchmarks/bench_lines [res=256] [directions=100]
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/DirectionSet.h"
-#include "vdbrad/LineSweep.h"
+#include "vdbrad/sweep/DirectionSet.h"
+#include "vdbrad/sweep/LineSweep.h"
 #include "vdbrad/vdbrad.h"
 
 #include <chrono>

@@ -7,11 +7,11 @@
 //    solver with 300 directions on the same voxels: what a picture costs next to the light.
 //
 //   build/benchmarks/bench_pipeline [mesh=samples/meshes/furnished_room.obj] [res...=128 256 512 1024]
-#include "vdbrad/Mesh.h"
-#include "vdbrad/RadiositySolver.h"
-#include "vdbrad/Renderer.h"
-#include "vdbrad/Scene.h"
-#include "vdbrad/Voxelizer.h"
+#include "vdbrad/mesh/Mesh.h"
+#include "vdbrad/mesh/Voxelizer.h"
+#include "vdbrad/render/Renderer.h"
+#include "vdbrad/scene/Scene.h"
+#include "vdbrad/surface/RadiositySolver.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>

@@ -16,9 +16,9 @@
 // another), no visibility cache (each iteration sweeps), exact direct light. Prints the wall
 // time of the solve (direct light included, once per set where each set has its own solver) and
 // of the smoothing.
-#include "vdbrad/OutputGrids.h"
-#include "vdbrad/RadiositySolver.h"
-#include "vdbrad/SurfacePlanes.h"
+#include "vdbrad/scene/OutputGrids.h"
+#include "vdbrad/scene/SurfacePlanes.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <openvdb/openvdb.h>

@@ -4,7 +4,7 @@
 //
 //   build/benchmarks/bench_raycast [res=256] [directions=50]
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>

@@ -15,14 +15,14 @@
 //
 // cacheMiB 0: no cache, every iteration sweeps every direction.
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <tbb/global_control.h>
 
 #include <sys/resource.h>
 
-#include "vdbrad/LinePartition.h"
+#include "vdbrad/sweep/LinePartition.h"
 
 #include <algorithm>
 #include <chrono>

@@ -16,8 +16,8 @@
 //       in the x-y plane, never copied) [csv=-] (appends one row per experiment, for
 //       scripts/plot-stepcloud.py; - for none) [ground=none] (a Lambertian ground's albedo
 //       under the cloud, in the solve and the Monte Carlo; T is then the ground's irradiance)
-#include "vdbrad/Cloud.h"
-#include "vdbrad/CloudTransfer.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/scene/Cloud.h"
 
 #include "BenchTiming.h"
 

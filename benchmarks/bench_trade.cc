@@ -26,8 +26,8 @@
 // seconds: construction + solve, all cores. peak_mb: the process's peak resident set during the
 //   run (reset before it through /proc/self/clear_refs; the scene itself included).
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/MonteCarloSolver.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/reference/MonteCarloSolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>

@@ -5,8 +5,8 @@
 // sanitizer report is a finding.
 #pragma once
 
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <cstddef>

@@ -6,6 +6,7 @@
 // [i vs, (i+1) vs] x [j vs, (j+1) vs] x [k vs, (k+1) vs], so its centre is ((i,j,k) + 0.5) vs.
 
 #include "CanonicalGrids.h"
+#include "vdbrad/core/Constants.h"
 
 #include <openvdb/Exceptions.h>
 #include <openvdb/Metadata.h>
@@ -33,7 +34,6 @@ using openvdb::Vec3d;
 using openvdb::Vec3f;
 using openvdb::Vec3SGrid;
 
-constexpr double kPi = 3.14159265358979323846;
 
 // ---- parameters --------------------------------------------------------------------------------
 

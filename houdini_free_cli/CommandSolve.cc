@@ -5,9 +5,9 @@
 #include "SolveSupport.h"
 #include "ToolSupport.h"
 
-#include "vdbrad/Distribution.h"
-#include "vdbrad/MonteCarloSolver.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/distribute/Distribution.h"
+#include "vdbrad/reference/MonteCarloSolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>
@@ -151,7 +151,7 @@ runSolve(const Arguments& a)
             mc.maxIterations);
         return 0;
     }
-    const double held = residentBytes(double(fileBytes(file) + scene.memUsage()));
+    const double held = heldBytes(double(fileBytes(file) + scene.memUsage()));
     // Auto: half of what the limit leaves once the solve has what it needs without a cache.
     o.visibilityCache = slabs ? 0 : cache >= 0.0 ? size_t(std::min(cache, 1e18))
         : RadiositySolver::visibilityCacheFor(scene, o, workerThreads(), memoryLimit(a) - held);

@@ -5,10 +5,10 @@
 #include "SolveSupport.h"
 #include "ToolSupport.h"
 
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/DirectionSet.h"
-#include "vdbrad/GridContract.h"
-#include "vdbrad/Scene.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/core/GridContract.h"
+#include "vdbrad/scene/Scene.h"
+#include "vdbrad/sweep/DirectionSet.h"
 #include "vdbrad/vdbrad.h"
 
 #include <cstdlib>
@@ -125,7 +125,7 @@ runSolveCloud(const Arguments& a)
             "through its extinction, so they add no light");
     }
     const std::string memory = checkMemory(a, label,
-        residentBytes(double(fileBytes(file) + cloud.memUsage() + scene.memUsage())),
+        heldBytes(double(fileBytes(file) + cloud.memUsage() + scene.memUsage())),
         double(CloudTransfer::memoryEstimate(cloud, o, workerThreads())));
     openvdb::FloatGrid::Ptr ground;
     openvdb::GridBase::Ptr radiosity;

@@ -1,4 +1,4 @@
-// `vdbrad voxelize`: an OBJ or PLY mesh into a surface scene (vdbrad/Voxelizer.h).
+// `vdbrad voxelize`: an OBJ or PLY mesh into a surface scene (vdbrad/mesh/Voxelizer.h).
 #include "Commands.h"
 #include "Progress.h"
 #include "ToolSupport.h"

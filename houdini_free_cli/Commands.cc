@@ -3,10 +3,10 @@
 #include "Progress.h"
 
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/Acceleration.h"
-#include "vdbrad/DirectionSet.h"
-#include "vdbrad/Distribution.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/distribute/Distribution.h"
+#include "vdbrad/surface/RadiositySolver.h"
+#include "vdbrad/sweep/Acceleration.h"
+#include "vdbrad/sweep/DirectionSet.h"
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>

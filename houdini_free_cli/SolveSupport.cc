@@ -2,8 +2,9 @@
 
 #include "ToolSupport.h"
 
-#include "vdbrad/Distribution.h"
-#include "vdbrad/OutputGrids.h"
+#include "vdbrad/core/ProcessInfo.h"
+#include "vdbrad/distribute/Distribution.h"
+#include "vdbrad/scene/OutputGrids.h"
 
 #include <cctype>
 #include <cmath>
@@ -36,12 +37,10 @@ threadLimit(const Arguments& a)
 }
 
 double
-residentBytes(double fallback)
+heldBytes(double fallback)
 {
-    std::ifstream statm("/proc/self/statm");
-    double pages = 0.0, resident = 0.0;
-    if (statm >> pages >> resident) return resident * double(::sysconf(_SC_PAGE_SIZE));
-    return fallback;
+    const double resident = residentBytes();
+    return resident > 0.0 ? resident : fallback;
 }
 
 size_t
@@ -79,10 +78,9 @@ memoryLimit(const Arguments& a)
     if (!a.has("max-memory")) {
         // Ranks started on one machine share its memory (each would otherwise plan for 3/4
         // of it, the visibility cache's auto budget included, and together run out).
-        const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGE_SIZE);
-        return pages > 0 && size > 0 ? 0.75 * double(pages) * double(size)
-                / double(Distribution::world().localRanks())
-            : 1e300;
+        const double physical = physicalMemory();
+        return physical > 0.0 ? 0.75 * physical / double(Distribution::world().localRanks())
+                              : 1e300;
     }
     return parseBytes("max-memory", a.getString("max-memory"), false);
 }

@@ -5,8 +5,8 @@
 #include "CommandLine.h"
 #include "Progress.h"
 
-#include "vdbrad/FixedPointIteration.h"
-#include "vdbrad/GridIO.h"
+#include "vdbrad/core/GridIO.h"
+#include "vdbrad/sweep/FixedPointIteration.h"
 
 #include <tbb/global_control.h>
 
@@ -24,7 +24,7 @@ std::unique_ptr<tbb::global_control> threadLimit(const Arguments& a);
 
 /// @brief Bytes this process holds now (resident set: the program, the input, the scene), or,
 /// where /proc is missing, @a fallback.
-double residentBytes(double fallback);
+double heldBytes(double fallback);
 
 /// Bytes the input's grids hold in memory.
 size_t fileBytes(const VdbFile& file);

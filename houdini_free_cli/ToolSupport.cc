@@ -1,7 +1,7 @@
 #include "ToolSupport.h"
 
-#include "vdbrad/Distribution.h"
-#include "vdbrad/Version.h"
+#include "vdbrad/core/Version.h"
+#include "vdbrad/distribute/Distribution.h"
 
 #include <cmath>
 #include <cstdio>

@@ -4,10 +4,10 @@
 
 #include "CommandLine.h"
 
-#include "vdbrad/Errors.h"
-#include "vdbrad/GridIO.h"
-#include "vdbrad/Scene.h"
-#include "vdbrad/TextFormat.h"
+#include "vdbrad/core/Errors.h"
+#include "vdbrad/core/GridIO.h"
+#include "vdbrad/core/TextFormat.h"
+#include "vdbrad/scene/Scene.h"
 
 #include <map>
 #include <stdexcept>
@@ -70,7 +70,7 @@ forFile(const std::string& label, F&& f) -> decltype(f())
     }
 }
 
-// ---- numbers (withCommas and formatBytes: vdbrad/TextFormat.h) -------------------------------
+// ---- numbers (withCommas and formatBytes: vdbrad/core/TextFormat.h) -------------------------------
 
 /// @brief "a,b,c" -> exactly @a count finite numbers (count 0: one or more).
 /// @throw UsageError naming @a option and the expected @a shape

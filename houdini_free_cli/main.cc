@@ -1,12 +1,12 @@
 // vdbrad: the Houdini-free command-line host of the vdbrad library.
 #include "Commands.h"
 
-#include "vdbrad/Distribution.h"
+#include "vdbrad/distribute/Distribution.h"
 
 int
 main(int argc, char** argv)
 {
-    // Before any thread starts: under mpirun this initialises MPI (vdbrad/Distribution.h).
+    // Before any thread starts: under mpirun this initialises MPI (vdbrad/distribute/Distribution.h).
     vdbrad::Distribution& ranks = vdbrad::Distribution::world();
     const int status = vdbrad::cli::runTool(std::vector<std::string>(argv + 1, argv + argc));
     ranks.finalize();

@@ -26,11 +26,11 @@
 
 #include <boost/python.hpp>
 
-#include "vdbrad/Acceleration.h"
-#include "vdbrad/Brdf.h"
-#include "vdbrad/Distribution.h"
-#include "vdbrad/Precision.h"
-#include "vdbrad/TextFormat.h"
+#include "vdbrad/core/Precision.h"
+#include "vdbrad/core/TextFormat.h"
+#include "vdbrad/distribute/Distribution.h"
+#include "vdbrad/glossy/Brdf.h"
+#include "vdbrad/sweep/Acceleration.h"
 #include "vdbrad/vdbrad.h"
 
 #include <tbb/global_control.h>
@@ -317,16 +317,6 @@ sceneOptions(const std::string& surface, float albedo, int separation, float rou
     return o;
 }
 
-/// Bytes this process holds now (resident set), as `vdbrad solve` counts them.
-double
-residentBytes()
-{
-    std::ifstream statm("/proc/self/statm");
-    double pages = 0.0, resident = 0.0;
-    if (statm >> pages >> resident) return resident * double(::sysconf(_SC_PAGE_SIZE));
-    return 0.0;
-}
-
 bool
 isAuto(const py::object& value)
 {
@@ -352,8 +342,8 @@ double
 memoryLimit(const py::object& maxMemory)
 {
     if (maxMemory.is_none()) {
-        const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGE_SIZE);
-        return pages > 0 && size > 0 ? 0.75 * double(pages) * double(size) : 1e300;
+        const double physical = physicalMemory();
+        return physical > 0.0 ? 0.75 * physical : 1e300;
     }
     return bytes("max_memory", maxMemory, false);
 }

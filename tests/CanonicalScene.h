@@ -2,7 +2,7 @@
 #pragma once
 
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/Scene.h"
+#include "vdbrad/scene/Scene.h"
 
 #include <string>
 

@@ -44,6 +44,7 @@
 #pragma once
 
 #include <tbb/blocked_range.h>
+#include "vdbrad/core/Constants.h"
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
@@ -112,7 +113,6 @@ struct MonteCarloRun
 /// Photons per independently seeded chunk; part of the definition of a seeded result.
 constexpr uint64_t kPhotonsPerChunk = 4096;
 
-constexpr double kPi = 3.14159265358979323846;
 
 // ---- random numbers ------------------------------------------------------------------------
 

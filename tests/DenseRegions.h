@@ -3,7 +3,7 @@
 // on random scenes) and benchmarks/bench_extremes.cc (old against new time); not in the library.
 #pragma once
 
-#include "vdbrad/Enclosure.h"
+#include "vdbrad/sweep/Enclosure.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

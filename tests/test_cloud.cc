@@ -1,12 +1,13 @@
 // CloudTransfer and SolarBeam: exact attenuation of the beam, energy balance, thin-medium limits,
 // determinism. Comparisons with the independent Monte Carlo are in test_cloud_reference.cc's
 // companion below (SlabAgreesWithMonteCarlo).
-#include "vdbrad/Cloud.h"
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/DirectionSet.h"
-#include "vdbrad/PhaseFunction.h"
-#include "vdbrad/SolarBeam.h"
-#include "vdbrad/VoxelStep.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/cloud/PhaseFunction.h"
+#include "vdbrad/cloud/SolarBeam.h"
+#include "vdbrad/cloud/VoxelStep.h"
+#include "vdbrad/scene/Cloud.h"
+#include "vdbrad/sweep/DirectionSet.h"
+#include "vdbrad/sweep/RealHarmonics.h"
 
 #include "CloudReference.h"
 #include "grids/CanonicalGrids.h"
@@ -894,7 +895,7 @@ TEST_F(CloudTest, PlaneParallelSlabOverAGroundIsTheAddingMethod)
                 problem.tau = tau;
                 problem.omega0 = omega0;
                 problem.g = g;
-                problem.mu0 = std::cos(zenith * test::kPi / 180.0);
+                problem.mu0 = std::cos(zenith * vdbrad::kPi / 180.0);
                 problem.groundAlbedo = 0.4;
                 const test::SlabResult exact = test::slabOverGround(problem);
                 const CloudBudget& b = transfer.budget();
@@ -942,7 +943,7 @@ TEST_F(CloudTest, ClearAirOverAGroundReflectsTheGroundsAlbedo)
             EXPECT_EQ(ground->activeVoxelCount(), openvdb::Index64(6 * 4));
             EXPECT_EQ(ground->evalActiveVoxelBoundingBox(),
                 openvdb::CoordBBox(Coord(0, -1, 0), Coord(5, -1, 3)));
-            const double mu0 = std::cos(zenith * test::kPi / 180.0);
+            const double mu0 = std::cos(zenith * vdbrad::kPi / 180.0);
             // Clear air: every cell of the footprint is lit alike, through the top and the
             // sunlit side (the beam's rays meet the ground equally spaced: SolarBeam.h).
             for (auto it = ground->cbeginValueOn(); it; ++it) {
@@ -954,7 +955,7 @@ TEST_F(CloudTest, ClearAirOverAGroundReflectsTheGroundsAlbedo)
             } else {
                 // The beam enters the open box's top (6 x 4 voxels) and its sunlit side (5 x 4),
                 // and the ground sends up 0.4 times what lands on it, F0 mu0 on its 6 x 4.
-                const double top = 24.0 * mu0, side = 20.0 * std::sin(60.0 * test::kPi / 180.0);
+                const double top = 24.0 * mu0, side = 20.0 * std::sin(60.0 * vdbrad::kPi / 180.0);
                 // (The rays cross the side's 5 x tan(60) = 8.66 voxels of reach in whole
                 // steps of half a voxel: 1 %.)
                 EXPECT_NEAR(b.albedo, 0.4 * top / (top + side), 0.015 * b.albedo);

@@ -21,6 +21,7 @@
 #include <vector>
 
 using namespace vdbrad::test;
+using vdbrad::kPi;
 
 namespace {
 

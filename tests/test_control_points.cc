@@ -1,6 +1,7 @@
 // ControlPoints (thesis §5.2): the icosahedral grid, interpolation, deformation and rotations.
 #include "RandomDirection.h"
-#include "vdbrad/ControlPoints.h"
+#include "vdbrad/core/Constants.h"
+#include "vdbrad/glossy/ControlPoints.h"
 
 #include <gtest/gtest.h>
 #include <openvdb/Exceptions.h>
@@ -12,11 +13,12 @@
 
 namespace {
 
+using vdbrad::kPi;
+
 using openvdb::math::Mat3d;
 using openvdb::math::Vec3d;
 using vdbrad::ControlPoints;
 
-constexpr double kPi = 3.14159265358979323846;
 
 using vdbrad::test::randomDirection;
 

@@ -2,17 +2,18 @@
 // force, shadows against analytic visibility, no leaks, thread-count independence, and the
 // solver's split of B into E plus swept reflected light.
 #include "CanonicalScene.h"
+#include "vdbrad/core/Constants.h"
 
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/DirectLight.h"
-#include "vdbrad/Emitters.h"
-#include "vdbrad/GridContract.h"
-#include "vdbrad/MeshTracer.h"
-#include "vdbrad/MonteCarloSolver.h"
-#include "vdbrad/OutputGrids.h"
-#include "vdbrad/RadiositySolver.h"
-#include "vdbrad/SurfacePlanes.h"
-#include "vdbrad/Voxelizer.h"
+#include "vdbrad/core/GridContract.h"
+#include "vdbrad/mesh/MeshTracer.h"
+#include "vdbrad/mesh/Voxelizer.h"
+#include "vdbrad/reference/MonteCarloSolver.h"
+#include "vdbrad/scene/Emitters.h"
+#include "vdbrad/scene/OutputGrids.h"
+#include "vdbrad/scene/SurfacePlanes.h"
+#include "vdbrad/surface/DirectLight.h"
+#include "vdbrad/surface/RadiositySolver.h"
 
 #include <gtest/gtest.h>
 #include <openvdb/openvdb.h>
@@ -35,7 +36,6 @@ using openvdb::Vec3f;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 class DirectTest : public ::testing::Test
 {

@@ -1,4 +1,4 @@
-// Tests of DirectionSet (vdbrad/DirectionSet.h): the sweep directions of the line-partition method
+// Tests of DirectionSet (vdbrad/sweep/DirectionSet.h): the sweep directions of the line-partition method
 // and their direction factors (thesis §4.1.2.2, §4.3.4).
 //
 // References are re-derived here independently of the implementation: a brute-force scan of the
@@ -7,9 +7,11 @@
 // library's Van Oosterom–Strackee triangles), a voxel-walking ray caster for a Monte-Carlo check,
 // and quadrature identities (∫ |cos| dω / 2π = 1).
 
-#include "vdbrad/DirectionSet.h"
-#include "vdbrad/HarmonicQuadrature.h"
-#include "vdbrad/PhaseFunction.h"
+#include "vdbrad/cloud/HarmonicQuadrature.h"
+#include "vdbrad/cloud/PhaseFunction.h"
+#include "vdbrad/core/Constants.h"
+#include "vdbrad/sweep/DirectionSet.h"
+#include "vdbrad/sweep/RealHarmonics.h"
 
 #include <gtest/gtest.h>
 
@@ -27,11 +29,12 @@
 
 namespace {
 
+using vdbrad::kPi;
+
 using vdbrad::DirectionSet;
 using openvdb::math::Coord;
 using openvdb::math::Vec3d;
 
-constexpr double kPi = 3.14159265358979323846;
 
 // ---- independent helpers ----------------------------------------------------------------------
 

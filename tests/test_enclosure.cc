@@ -2,7 +2,7 @@
 // cell of the bounding box (the implementation it replaced: DenseRegions.h), on random scenes and
 // on hand-built boxes with known answers.
 #include "DenseRegions.h"
-#include "vdbrad/Enclosure.h"
+#include "vdbrad/sweep/Enclosure.h"
 
 #include <gtest/gtest.h>
 

@@ -1,11 +1,12 @@
 // Surfaces inside a medium (FogSurfaces.h, CloudTransferOptions::surfaces).
-#include "vdbrad/Checkpoint.h"
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/FogSurfaces.h"
-#include "vdbrad/RadiositySolver.h"
-#include "vdbrad/MonteCarloSolver.h"
-#include "vdbrad/DirectLight.h"
-#include "vdbrad/Scene.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/cloud/FogSurfaces.h"
+#include "vdbrad/core/Checkpoint.h"
+#include "vdbrad/core/Constants.h"
+#include "vdbrad/reference/MonteCarloSolver.h"
+#include "vdbrad/scene/Scene.h"
+#include "vdbrad/surface/DirectLight.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "grids/CanonicalGrids.h"
 
 #include <gtest/gtest.h>
@@ -21,7 +22,6 @@ using openvdb::Coord;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 class FogSurfacesTest : public ::testing::Test
 {

@@ -1,15 +1,16 @@
 // Glossy surfaces (thesis ch. 5): the lobes' kernels on control points, their normalisation,
 // and the radiosity solver carrying them, against exact references.
 #include "CanonicalScene.h"
+#include "vdbrad/core/Constants.h"
 #include "RandomDirection.h"
-#include "vdbrad/Brdf.h"
-#include "vdbrad/ControlBrdf.h"
-#include "vdbrad/DirectLight.h"
-#include "vdbrad/Emitters.h"
-#include "vdbrad/GlossyLamps.h"
-#include "vdbrad/GlossySurfaces.h"
-#include "vdbrad/HarmonicBrdf.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/glossy/Brdf.h"
+#include "vdbrad/glossy/ControlBrdf.h"
+#include "vdbrad/glossy/GlossySurfaces.h"
+#include "vdbrad/glossy/HarmonicBrdf.h"
+#include "vdbrad/render/GlossyLamps.h"
+#include "vdbrad/scene/Emitters.h"
+#include "vdbrad/surface/DirectLight.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <gtest/gtest.h>
@@ -25,7 +26,6 @@ using openvdb::Vec3f;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 class GlossyTest : public ::testing::Test
 {

@@ -11,12 +11,12 @@
 //     VDBRAD_UPDATE_GOLDEN=1 build/tests/test_golden   (writes both files in tests/golden/)
 //
 // and says so in its commit message.
-#include "vdbrad/Checkpoint.h"
-#include "vdbrad/Cloud.h"
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/MonteCarloSolver.h"
-#include "vdbrad/PhaseFunction.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/cloud/PhaseFunction.h"
+#include "vdbrad/core/Checkpoint.h"
+#include "vdbrad/reference/MonteCarloSolver.h"
+#include "vdbrad/scene/Cloud.h"
+#include "vdbrad/surface/RadiositySolver.h"
 
 #include "CanonicalScene.h"
 #include "ToolTest.h"

@@ -4,6 +4,7 @@
 // builder's own helpers), and the closed forms against brute-force quadrature.
 
 #include "grids/CanonicalGrids.h"
+#include "vdbrad/core/Constants.h"
 
 #include <gtest/gtest.h>
 #include <openvdb/openvdb.h>
@@ -17,6 +18,8 @@
 
 namespace {
 
+using vdbrad::kPi;
+
 namespace vg = vdbrad::grids;
 using openvdb::Coord;
 using openvdb::CoordBBox;
@@ -25,7 +28,6 @@ using openvdb::Vec3d;
 using openvdb::Vec3f;
 using openvdb::Vec3SGrid;
 
-constexpr double kPi = 3.14159265358979323846;
 
 class VdbEnvironment : public ::testing::Environment
 {

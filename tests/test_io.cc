@@ -2,7 +2,7 @@
 // files as other tools write them (double, half and Vec3d grids, Houdini and Blender names).
 #include "ToolTest.h"
 
-#include "vdbrad/CrashGuard.h"
+#include "vdbrad/core/CrashGuard.h"
 #include "vdbrad/vdbrad.h"
 
 #include <openvdb/tools/LevelSetSphere.h>

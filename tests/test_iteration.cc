@@ -1,11 +1,11 @@
 // FixedPointIteration and iterateSolve(): option checks, convergence bookkeeping, the Anderson
 // step's physical-iterate rule, and driving a solve with checkpoints and reports, as the
 // one-call solve functions and the tool do.
-#include "vdbrad/CloudTransfer.h"
-#include "vdbrad/Errors.h"
-#include "vdbrad/FixedPointIteration.h"
-#include "vdbrad/MonteCarloSolver.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/cloud/CloudTransfer.h"
+#include "vdbrad/core/Errors.h"
+#include "vdbrad/reference/MonteCarloSolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
+#include "vdbrad/sweep/FixedPointIteration.h"
 
 #include "CanonicalScene.h"
 

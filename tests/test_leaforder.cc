@@ -1,7 +1,7 @@
 // LeafOrder: the signed lexicographic visiting order (thesis §4.3.3.4) extends the componentwise
 // order of every monotone digital line.
-#include "vdbrad/LeafOrder.h"
-#include "vdbrad/LinePartition.h"
+#include "vdbrad/sweep/LeafOrder.h"
+#include "vdbrad/sweep/LinePartition.h"
 
 #include <gtest/gtest.h>
 

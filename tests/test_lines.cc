@@ -1,7 +1,7 @@
 // LinePartition: the partition of Z^3 into naive / standard 3D arithmetic lines of one direction
 // (thesis §4.3.2-4.3.3, Figueiredo & Reveillès 1995), checked against an independent reference
 // written straight from the defining inequalities, by brute force over boxes and along long walks.
-#include "vdbrad/LinePartition.h"
+#include "vdbrad/sweep/LinePartition.h"
 
 #include <openvdb/Types.h>
 

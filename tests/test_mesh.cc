@@ -1,8 +1,8 @@
 // Mesh: OBJ/MTL and PLY reading (exact points, windings, materials, every error path) and the
 // sample meshes in samples/meshes.
-#include "vdbrad/GridContract.h"
-#include "vdbrad/Mesh.h"
-#include "vdbrad/Voxelizer.h"
+#include "vdbrad/core/GridContract.h"
+#include "vdbrad/mesh/Mesh.h"
+#include "vdbrad/mesh/Voxelizer.h"
 
 #include <gtest/gtest.h>
 

@@ -3,8 +3,8 @@
 // standard error, thread-count independence, and the line-partition solver's angular error.
 #include "CanonicalScene.h"
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/MonteCarloSolver.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/reference/MonteCarloSolver.h"
+#include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/vdbrad.h"
 
 #include <gtest/gtest.h>

@@ -1,9 +1,9 @@
 // The mesh-to-picture pipeline through the `vdbrad` tool: voxelize, solve, render, as a user
 // runs them (pipes, Debian's vdb_tool and exrheader), and the errors each step gives.
 #include "ToolTest.h"
-#include "vdbrad/ImageIO.h"
-#include "vdbrad/Mesh.h"
-#include "vdbrad/Voxelizer.h"
+#include "vdbrad/mesh/Mesh.h"
+#include "vdbrad/mesh/Voxelizer.h"
+#include "vdbrad/render/ImageIO.h"
 #include "vdbrad/vdbrad.h"
 
 #include <gtest/gtest.h>

@@ -2,10 +2,10 @@
 // light-tightness of closed walls, mirror symmetry, and bit-identical results for any thread count.
 #include "CanonicalScene.h"
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/Enclosure.h"
-#include "vdbrad/LineSweep.h"
-#include "vdbrad/SlabDistribution.h"
-#include "vdbrad/RadiositySolver.h"
+#include "vdbrad/distribute/SlabDistribution.h"
+#include "vdbrad/surface/RadiositySolver.h"
+#include "vdbrad/sweep/Enclosure.h"
+#include "vdbrad/sweep/LineSweep.h"
 #include "vdbrad/vdbrad.h"
 
 #include <gtest/gtest.h>

@@ -3,9 +3,9 @@
 // no bleeding across a corner, a level-set sphere's silhouette, exact emission-absorption through
 // a homogeneous cloud, the default camera, EXR and PNG bytes, and the errors users meet.
 #include "grids/CanonicalGrids.h"
-#include "vdbrad/ImageIO.h"
-#include "vdbrad/MeshTracer.h"
-#include "vdbrad/Renderer.h"
+#include "vdbrad/mesh/MeshTracer.h"
+#include "vdbrad/render/ImageIO.h"
+#include "vdbrad/render/Renderer.h"
 #include "vdbrad/vdbrad.h"
 
 #include <openvdb/tools/LevelSetSphere.h>

@@ -1,7 +1,7 @@
 // SweepSchedule: how the directions are dealt to sign patterns and accumulator groups, the
 // visiting orders, the fixed-order reduction and cancellation.
-#include "vdbrad/Errors.h"
-#include "vdbrad/SweepSchedule.h"
+#include "vdbrad/core/Errors.h"
+#include "vdbrad/sweep/SweepSchedule.h"
 
 #include "CanonicalScene.h"
 

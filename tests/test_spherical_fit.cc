@@ -1,4 +1,4 @@
-// Tests of SphericalFit (vdbrad/SphericalFit.h): least-squares and max-norm fits of values at
+// Tests of SphericalFit (vdbrad/glossy/SphericalFit.h): least-squares and max-norm fits of values at
 // control points on the sphere (thesis §5.2, eqs. 5.1-5.3).
 //
 // References are computed here independently of the implementation: a dense normal-equations solve
@@ -7,7 +7,7 @@
 // small non-negative least-squares problems (instead of Lawson-Hanson), hand-solved optima, and
 // the Karush-Kuhn-Tucker conditions of larger non-negative fits.
 
-#include "vdbrad/SphericalFit.h"
+#include "vdbrad/glossy/SphericalFit.h"
 
 #include <openvdb/Exceptions.h>
 

@@ -1,4 +1,4 @@
-// Tests of SphericalHarmonics (vdbrad/SphericalHarmonics.h): real spherical-harmonic expansions
+// Tests of SphericalHarmonics (vdbrad/glossy/SphericalHarmonics.h): real spherical-harmonic expansions
 // beside ControlPoints, with the same operations (query, projection, fit, rotation).
 //
 // References are independent of the implementation where possible: closed forms of the
@@ -9,7 +9,8 @@
 // normal equations for the regularised fit.
 
 #include "RandomDirection.h"
-#include "vdbrad/SphericalHarmonics.h"
+#include "vdbrad/core/Constants.h"
+#include "vdbrad/glossy/SphericalHarmonics.h"
 
 #include <openvdb/Exceptions.h>
 
@@ -25,11 +26,12 @@
 
 namespace {
 
+using vdbrad::kPi;
+
 using vdbrad::SphericalHarmonics;
 using openvdb::math::Mat3d;
 using openvdb::math::Vec3d;
 
-constexpr double kPi = 3.14159265358979323846;
 
 using vdbrad::test::randomDirection;
 

@@ -2,7 +2,7 @@
 // distinguishes, its edges included), the byte count is the code's, and the budget is never
 // exceeded, also by threads offering at once. Solver-level equivalence (cached iterations give
 // the sweeps' bits, in either code) is in test_radiosity.cc.
-#include "vdbrad/VisibilityCache.h"
+#include "vdbrad/sweep/VisibilityCache.h"
 
 #include <gtest/gtest.h>
 

@@ -1,13 +1,14 @@
 // Voxelizer: exact voxel tests against independent references, the unit cube's exact voxel
 // count and normals, materials, and the topology guarantee (no digital line of the matching type
 // passes from inside to outside a closed mesh without meeting a surface voxel).
-#include "vdbrad/DirectionSet.h"
-#include "vdbrad/Emitters.h"
-#include "vdbrad/GridContract.h"
-#include "vdbrad/LinePartition.h"
-#include "vdbrad/RadiositySolver.h"
-#include "vdbrad/Scene.h"
-#include "vdbrad/Voxelizer.h"
+#include "vdbrad/core/Constants.h"
+#include "vdbrad/core/GridContract.h"
+#include "vdbrad/mesh/Voxelizer.h"
+#include "vdbrad/scene/Emitters.h"
+#include "vdbrad/scene/Scene.h"
+#include "vdbrad/surface/RadiositySolver.h"
+#include "vdbrad/sweep/DirectionSet.h"
+#include "vdbrad/sweep/LinePartition.h"
 
 #include <gtest/gtest.h>
 
@@ -29,7 +30,6 @@ using openvdb::Vec3I;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 class VoxelizerTest : public ::testing::Test
 {

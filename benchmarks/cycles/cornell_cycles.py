@@ -1,6 +1,6 @@
 # Render an OBJ scene in Blender Cycles as the path-traced reference for vdbrad (issues 23, 25):
 # vdbrad's reflectance model from the MTL the OBJ names (read here as vdbrad's voxelizer reads
-# it): f = Kd / pi + Ks lobe (vdbrad/Brdf.h), a Lambertian Diffuse BSDF of colour Kd plus, for
+# it): f = Kd / pi + Ks lobe (vdbrad/glossy/Brdf.h), a Lambertian Diffuse BSDF of colour Kd plus, for
 # materials with Ks, a Glossy BSDF of weight Ks (Add Shader; see reflection()) with the
 # multiscatter GGX distribution (energy-conserving, as vdbrad's compensated lobes are; no
 # Fresnel) and vdbrad's roughness r: Pr, else from Ns r = sqrt(sqrt(2 / (Ns + 2))), else 0.5;
@@ -30,7 +30,7 @@ width, height = (int(v) for v in (args[4] if len(args) > 4 else "320x240").split
 cam = [float(v) for v in (args[5] if len(args) > 5 else
        "0.278,0.273,-0.8,0.278,0.273,0,0,1,0,39.3").split(",")]
 
-# The MTL's Kd, Ks, Ns, Pr and Ke by material name (vdbrad/ObjReader.cc's reading).
+# The MTL's Kd, Ks, Ns, Pr and Ke by material name (vdbrad/mesh/ObjReader.cc's reading).
 materials = {}
 mtl = None
 with open(mesh) as f:
