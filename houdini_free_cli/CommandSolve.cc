@@ -35,6 +35,7 @@ runSolve(const Arguments& a)
     const std::string in = a.positional()[0], out = a.positional()[1];
     const SceneOptions sceneOpts = sceneOptions(a);
     RadiosityOptions o;
+    o.ranks = &job();
     o.directions = a.getInt("directions");
     o.maxIterations = a.getInt("iterations");
     o.tolerance = a.getFloat("tolerance");
@@ -96,7 +97,7 @@ runSolve(const Arguments& a)
         throw UsageError("--checkpoint and --resume do not apply to --method montecarlo");
     }
     o.spread = a.getString("distribute") == "slabs" ? Spread::Slabs : Spread::Directions;
-    const bool slabs = o.spread == Spread::Slabs && Distribution::world().distributed();
+    const bool slabs = o.spread == Spread::Slabs && job().distributed();
     if (o.spread == Spread::Slabs) {
         // What the slab passes do not carry (RadiosityOptions::spread).
         if (method != "sweep") throw UsageError("--distribute slabs needs --method sweep");

@@ -53,6 +53,7 @@ runSolveCloud(const Arguments& a)
         cloudOpts.emissionColour = openvdb::Vec3f(float(c[0]), float(c[1]), float(c[2]));
     }
     CloudTransferOptions o;
+    o.ranks = &job();
     const std::vector<double> sun = numberList(a, "sun", 2, "zenith,azimuth in degrees");
     o.sunZenith = sun[0];
     o.sunAzimuth = sun[1];

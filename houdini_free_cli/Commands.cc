@@ -1,6 +1,7 @@
 #include "Commands.h"
 
 #include "Progress.h"
+#include "ToolSupport.h"
 
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/distribute/Distribution.h"
@@ -400,7 +401,7 @@ namespace {
 void
 failed(const std::string& what)
 {
-    const Distribution& ranks = Distribution::world();
+    const Distribution& ranks = job();
     std::cerr << "vdbrad: error: ";
     if (ranks.distributed()) std::cerr << "rank " << ranks.rank() << ": ";
     std::cerr << what << "\n";
@@ -409,9 +410,24 @@ failed(const std::string& what)
 
 } // namespace
 
-int
-runTool(const std::vector<std::string>& args)
+namespace {
+
+// runTool()'s job, for job(): the tool is one host, whose commands run one at a time.
+const Distribution* gJob = nullptr;
+
+} // namespace
+
+const Distribution&
+job()
 {
+    static const Distribution alone;
+    return gJob ? *gJob : alone;
+}
+
+int
+runTool(const std::vector<std::string>& args, const Distribution* ranks)
+{
+    gJob = ranks;
     try {
         if (args.empty() || args[0] == "--help" || args[0] == "-h") {
             std::cout << overviewHelp(commands());
@@ -440,7 +456,7 @@ runTool(const std::vector<std::string>& args)
             std::cout << commandHelp(*command);
             return 0;
         }
-        if (Distribution::world().distributed() && command->name != "solve"
+        if (job().distributed() && command->name != "solve"
             && command->name != "solve-cloud") {
             throw UsageError("only solve and solve-cloud run under mpirun; run '"
                 + command->name + "' as one process");
@@ -450,15 +466,15 @@ runTool(const std::vector<std::string>& args)
         return command->run(parsed);
     } catch (const UsageError& e) {
         // Under mpirun every rank reads the same arguments and input: rank 0 says it once.
-        if (Distribution::world().rank() == 0) std::cerr << "vdbrad: error: " << e.what() << "\n";
+        if (job().rank() == 0) std::cerr << "vdbrad: error: " << e.what() << "\n";
         return 2;
     } catch (const UserError& e) {
-        if (Distribution::world().rank() == 0) std::cerr << "vdbrad: error: " << e.what() << "\n";
+        if (job().rank() == 0) std::cerr << "vdbrad: error: " << e.what() << "\n";
         return 1;
     } catch (const Cancelled&) {
         // mpirun passes a signal to every rank: rank 0 says it; and since a signal may have
         // reached one rank only, while the others wait for its sums, the job ends here.
-        const Distribution& ranks = Distribution::world();
+        const Distribution& ranks = job();
         if (ranks.rank() == 0) {
             std::cerr << "vdbrad: cancelled";
             if (ProgressInterrupter::signalNumber() != 0) {

@@ -6,6 +6,9 @@
 #include <vector>
 
 namespace vdbrad {
+
+class Distribution;
+
 namespace cli {
 
 /// Every command, in the order help lists them.
@@ -14,7 +17,8 @@ const std::vector<CommandSpec>& commands();
 /// @brief Run the tool on @a args (argv without the program name); returns the exit status:
 /// 0 success, 1 bad input or failure, 2 bad command line, 130 cancelled by a signal.
 /// Only this function maps errors to exit statuses and prints them (one line on stderr).
-int runTool(const std::vector<std::string>& args);
+/// @a ranks: the MPI job the solves are shared with (Distribution::join()); null: this process.
+int runTool(const std::vector<std::string>& args, const Distribution* ranks = nullptr);
 
 // The code behind each command of the table, one file each (Command<Name>.cc). They run on
 // arguments the table has already checked, and return the exit status.

@@ -79,7 +79,7 @@ memoryLimit(const Arguments& a)
         // Ranks started on one machine share its memory (each would otherwise plan for 3/4
         // of it, the visibility cache's auto budget included, and together run out).
         const double physical = physicalMemory();
-        return physical > 0.0 ? 0.75 * physical / double(Distribution::world().localRanks())
+        return physical > 0.0 ? 0.75 * physical / double(job().localRanks())
                               : 1e300;
     }
     return parseBytes("max-memory", a.getString("max-memory"), false);
@@ -127,7 +127,7 @@ SolveSession::SolveSession(const Arguments& a, const std::string& in, const std:
     , mFile((checkOutput(out, {in}, a.flag("overwrite")), readInput(in)))
     , mLabel(inputLabel(in))
     // Under mpirun rank 0 alone prints, saves checkpoints and writes the output.
-    , mQuiet(a.flag("quiet") || Distribution::world().rank() != 0)
+    , mQuiet(a.flag("quiet") || job().rank() != 0)
     , mProgress(mQuiet)
 {
 }
@@ -136,7 +136,7 @@ SolveControl
 SolveSession::control(const std::string& preface)
 {
     SolveControl c;
-    if (Distribution::world().rank() == 0) c.checkpoint = mCheckpoints.save;
+    if (job().rank() == 0) c.checkpoint = mCheckpoints.save;
     c.checkpointEvery = mCheckpoints.every;
     c.resume = mCheckpoints.resume;
     auto first = std::make_shared<bool>(true);
@@ -163,7 +163,7 @@ SolveSession::control(const std::string& preface)
 void
 SolveSession::releaseInput()
 {
-    if (Distribution::world().rank() == 0) return;
+    if (job().rank() == 0) return;
     openvdb::GridPtrVec().swap(mFile.grids);
 #ifdef __GLIBC__
     // Leaf nodes are small blocks: glibc keeps them in the heap unless asked to give it back.
@@ -179,7 +179,7 @@ SolveSession::finish(const openvdb::GridPtrVec& results, const std::string& out,
         warn(mLabel, "stopped at --iterations " + std::to_string(maxIterations)
             + " with residual " + std::to_string(mOutcome.residual) + " > --tolerance");
     }
-    const Distribution& ranks = Distribution::world();
+    const Distribution& ranks = job();
     if (ranks.rank() != 0) return;
     if (ranks.distributed() && !mQuiet) {
         std::ostringstream line;

@@ -54,7 +54,7 @@ readInput(const std::string& path)
 {
     try {
         if (isStdin(path)) {
-            if (Distribution::world().distributed()) {
+            if (job().distributed()) {
                 // mpirun gives standard input to rank 0 alone.
                 throw UsageError("under mpirun, give the input as a file (only rank 0 has "
                                  "standard input)");
@@ -102,7 +102,7 @@ writeOutput(const VdbFile& file, const std::string& path)
 void
 warn(const std::string& label, const std::string& what)
 {
-    if (Distribution::world().rank() != 0) return;   // said once, by rank 0
+    if (job().rank() != 0) return;   // said once, by rank 0
     std::cerr << "vdbrad: warning: " << label << ": " << what << "\n";
 }
 
@@ -110,7 +110,7 @@ void
 describeReading(const Arguments& a, const std::string& label, const VdbFile& file,
     const std::string& surface, const std::string& density)
 {
-    if (!a.flag("verbose") || Distribution::world().rank() != 0) return;
+    if (!a.flag("verbose") || job().rank() != 0) return;
     // The builders meet the same grids next and report any error; here only what went right.
     std::vector<std::string> notes;
     try {

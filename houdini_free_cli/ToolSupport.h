@@ -15,7 +15,16 @@
 #include <vector>
 
 namespace vdbrad {
+
+class Distribution;
+
 namespace cli {
+
+// ---- the MPI job ------------------------------------------------------------------------------
+
+/// The MPI job the tool runs in: what runTool() was given (main() joins it), else this process
+/// alone. Solves take it through their options' `ranks`.
+const Distribution& job();
 
 // ---- standard streams and files ----------------------------------------------------------------
 

@@ -59,6 +59,15 @@ namespace vdbrad {
 namespace python {
 namespace {
 
+/// The MPI job this interpreter runs in, joined at import (null before): solves are shared with
+/// its ranks when Python runs under mpirun.
+std::unique_ptr<Distribution>&
+job()
+{
+    static std::unique_ptr<Distribution> ranks;
+    return ranks;
+}
+
 // ---- grids between pyopenvdb and the library ---------------------------------------------------
 
 template<typename T> struct Tag { using Type = T; };
@@ -408,6 +417,7 @@ solve(const py::object& gridsIn, int directions, int iterations, double toleranc
     const InputGrids input(gridsIn);
     const SceneOptions sceneOpts = sceneOptions(surface, albedo, separation, roughness);
     RadiosityOptions o;
+    o.ranks = job().get();
     o.directions = directions;
     o.maxIterations = iterations;
     o.tolerance = tolerance;
@@ -528,6 +538,7 @@ solveCloudGrids(const py::object& gridsIn, const std::pair<double, double>& sun,
     cloudOpts.emissionColour = openvdb::Vec3f(emissionColour[0], emissionColour[1],
         emissionColour[2]);
     CloudTransferOptions o;
+    o.ranks = job().get();
     o.sunZenith = sun.first;
     o.sunAzimuth = sun.second;
     if (!(o.sunZenith >= 0.0 && o.sunZenith <= 89.9)) {
@@ -754,7 +765,7 @@ PYBIND11_MODULE(vdbrad, m)
     py::module_::import("pyopenvdb");
     openvdb::initialize();
     // On the main thread, before any other runs (Distribution.h).
-    vdbrad::Distribution::world();
+    job() = vdbrad::Distribution::join();
     py::register_exception_translator(&translate);
 
     m.doc() = "vdbrad: voxel radiosity on OpenVDB grids (pyopenvdb in, pyopenvdb and NumPy out). "

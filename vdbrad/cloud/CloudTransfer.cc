@@ -180,6 +180,8 @@ meetSurface(Ray& ray, uint32_t v, double c, bool adjacent, double etendue, SentT
 
 struct CloudTransfer::Impl
 {
+    // The ranks of CloudTransferOptions::ranks, or this process alone where it gives none.
+    Distribution alone;
     static constexpr int kGroups = SweepSchedule::kGroups;
 
     size_t n = 0;
@@ -1037,7 +1039,7 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     Impl::Sweep sw{S, B, E, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {},
         surfaceEmits, {}, {}};
     // Under MPI each rank sweeps its own groups (Distribution.h).
-    const Distribution& ranks = Distribution::world();
+    const Distribution& ranks = Distribution::orAlone(mOptions.ranks, impl.alone);
     auto mine = [&](int g) { return ranks.owns(g); };
     SweepProgress progress(interrupt, schedule.directionsOf(mine));
     const size_t perBatch = Impl::batchSize(n, M);

@@ -106,6 +106,8 @@ enum class VoxelSource
     Linear
 };
 
+class Distribution;
+
 struct CloudTransferOptions
 {
     /// Direction pairs swept per iteration (DirectionSet::fromCount: the nearest count); 0
@@ -166,6 +168,9 @@ struct CloudTransferOptions
     /// surfaces' emission: light of each colour travels alone, so solveCloud() solves an RGB
     /// problem channel by channel.
     int channel = 0;
+    /// The MPI job the transfer is shared with (Distribution.h: each rank sweeps its groups of
+    /// directions; the same bits); kept by the host, not owned; null: this process alone.
+    const Distribution* ranks = nullptr;
 };
 
 /// Where the incident sunlight went, as fractions of the incident power (after the last sweep).

@@ -28,24 +28,28 @@ launched()
 
 } // namespace
 
-Distribution&
-Distribution::world()
+std::unique_ptr<Distribution>
+Distribution::join()
 {
-    static Distribution d;
-    static bool once = false;
-    if (once) return d;
-    once = true;
+    std::unique_ptr<Distribution> d(new Distribution);
 #ifdef VDBRAD_WITH_MPI
     if (launched()) {
+        int initialised = 0;
+        MPI_Initialized(&initialised);
+        if (initialised) {
+            OPENVDB_THROW(openvdb::RuntimeError, "MPI is already initialised: join the job once "
+                "per process");
+        }
         // Only the calling (main) thread talks to MPI: the exchanges are between sweeps.
         int provided = 0;
         MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
-        d.mInitialised = true;
-        MPI_Comm_rank(MPI_COMM_WORLD, &d.mRank);
-        MPI_Comm_size(MPI_COMM_WORLD, &d.mRanks);
+        d->mInitialised = true;
+        MPI_Comm_rank(MPI_COMM_WORLD, &d->mRank);
+        MPI_Comm_size(MPI_COMM_WORLD, &d->mRanks);
         MPI_Comm local;
-        MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, d.mRank, MPI_INFO_NULL, &local);
-        MPI_Comm_size(local, &d.mLocalRanks);
+        MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, d->mRank, MPI_INFO_NULL,
+            &local);
+        MPI_Comm_size(local, &d->mLocalRanks);
         MPI_Comm_free(&local);
     }
 #endif
@@ -158,6 +162,7 @@ struct Distribution::Sends
 #endif
 };
 
+Distribution::Distribution() = default;
 Distribution::~Distribution() = default;
 
 

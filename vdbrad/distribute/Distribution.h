@@ -14,8 +14,11 @@
 // shared out in blocks (ownsBlock) and combined by a sum in which one rank's value meets the
 // others' zeros (combine): exact too.
 //
-// Built without MPI (CMake found none, or -DVDBRAD_MPI=OFF), or run outside mpirun, world() is
-// one process and nothing is exchanged.
+// The host creates the job's context (join(), once, in main() or at module import) and hands it
+// to the solves through their options (`ranks`); the library keeps no global and never starts
+// MPI itself. A solve given none, a default-constructed Distribution, a build without MPI (CMake
+// found none, or -DVDBRAD_MPI=OFF) or a process not started by mpirun is one process: nothing is
+// exchanged.
 #pragma once
 
 #include <cstddef>
@@ -27,10 +30,23 @@ namespace vdbrad {
 class Distribution
 {
 public:
-    /// @brief The job's processes (MPI_COMM_WORLD), MPI initialised on the first call if this
-    /// process was started by mpirun (Open MPI, MPICH or PMIx environment), else one process.
-    /// Call it first from the main thread, before any other thread runs.
-    static Distribution& world();
+    /// One process: what a solve given no Distribution runs on.
+    Distribution();
+    Distribution(const Distribution&) = delete;
+    Distribution& operator=(const Distribution&) = delete;
+
+    /// @brief The job's processes (MPI_COMM_WORLD), MPI initialised here if this process was
+    /// started by mpirun (Open MPI, MPICH or PMIx environment), else one process. For hosts:
+    /// call it once per process, from the main thread before any other thread runs, keep the
+    /// object while solves run and finalize() it at the end.
+    /// @throw openvdb::RuntimeError if MPI was already initialised (a second join())
+    static std::unique_ptr<Distribution> join();
+
+    /// @a ranks, or @a alone where it is null: the ranks a solve given @a ranks runs on.
+    static const Distribution& orAlone(const Distribution* ranks, const Distribution& alone)
+    {
+        return ranks ? *ranks : alone;
+    }
 
     int rank() const { return mRank; }
     int ranks() const { return mRanks; }
@@ -91,7 +107,6 @@ public:
     ~Distribution();
 
 private:
-    Distribution() = default;
     struct Sends;   // messages on their way (MPI requests and their buffers)
     mutable std::unique_ptr<Sends> mSends;
     int mRank = 0, mRanks = 1, mLocalRanks = 1;

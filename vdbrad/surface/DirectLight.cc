@@ -311,7 +311,8 @@ directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLight
     // depends on itself alone (its own sample seed), so the sum over ranks of values computed
     // by one rank and zeros elsewhere is the serial result, bit for bit. The incident sink sees
     // only this rank's voxels: its owner combines what it gathered.
-    const Distribution& ranks = Distribution::world();
+    const Distribution alone;
+    const Distribution& ranks = Distribution::orAlone(options.ranks, alone);
     constexpr size_t kBlock = 1024;
     std::vector<size_t> mine;
     for (size_t b = 0; b * kBlock < n; ++b) {

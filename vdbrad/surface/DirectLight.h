@@ -55,12 +55,16 @@ enum class DirectMode
     Auto
 };
 
+class Distribution;
+
 struct DirectLightOptions
 {
     /// Shadow rays per voxel, >= 1.
     int samples = 16;
     /// Seed of the per-voxel sample sequences.
     uint64_t seed = 1;
+    /// The MPI job whose ranks share the voxels out (Distribution.h); null: this process.
+    const Distribution* ranks = nullptr;
 };
 
 /// True if @a mode resolves to exact direct light for @a scene (something emits; Auto: at most

@@ -68,6 +68,12 @@ template<> openvdb::Vec3d channelsOf<openvdb::Vec3d>(const openvdb::Vec3d& v) { 
 // What the solver needs that does not depend on the value type.
 struct RadiositySolver::Impl
 {
+    // The ranks of RadiosityOptions::ranks, or this process alone where it gives none.
+    Distribution alone;
+    const Distribution& ranksFor(const RadiosityOptions& o) const
+    {
+        return Distribution::orAlone(o.ranks, alone);
+    }
     std::unique_ptr<SweepSchedule> schedule;
     std::unique_ptr<RayCastVisibility> rays;             // Visibility::RayCast only
     // Spread::Slabs under mpirun (null otherwise): the whole scene's part, and the chain of
@@ -525,7 +531,7 @@ struct RadiositySolver::Engine
         const std::vector<ValueT>& source = shooting ? U : B;
         std::vector<std::vector<Scalar>> hits(static_cast<size_t>(kGroups));
         // Under MPI each rank sweeps its own groups (Distribution.h) and counts only theirs.
-        const Distribution& ranks = Distribution::world();
+        const Distribution& ranks = impl.ranksFor(s.mOptions);
         // With slabs every rank sweeps every direction, over its slab.
         const bool slabs = impl.pipeline != nullptr;
         SweepProgress progress(interrupt,
@@ -751,7 +757,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
         if (options.lines != LineType::Naive) refuse("needs naive lines");
         if (options.visibility != Visibility::Sweep) refuse("needs the line sweeps");
         if (options.accelerate != Acceleration::None) refuse("is not Anderson-accelerated");
-        impl.pipeline.reset(new SlabPipeline(Distribution::world()));
+        impl.pipeline.reset(new SlabPipeline(impl.ranksFor(options)));
     }
     if (scene.isGlossy()) {
         // The lobes' light is carried by the sweeps only; their state is not B alone.
@@ -800,7 +806,7 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     if (impl.cache) {
         // Each accumulator group this rank sweeps keeps its share of the budget
         // (VisibilityCache::pools).
-        const Distribution& ranks = Distribution::world();
+        const Distribution& ranks = impl.ranksFor(options);
         std::vector<uint32_t> groupOf(dirs, VisibilityCache::kNoPool);
         for (int g = 0; g < kGroups; ++g) {
             if (!ranks.owns(g)) continue;
@@ -893,6 +899,7 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
     const size_t n = mScene.size();
     DirectLightOptions d;
     d.samples = mOptions.directSamples;
+    d.ranks = mOptions.ranks;
     // Glossy voxels also need where their direct light comes from: the estimate's arrivals,
     // splatted on the points (per unit of irradiance; iterate() scales by the voxel's cosine
     // sum as the sweeps' splats are).
@@ -918,7 +925,7 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
                                   interrupt, impl.glossy ? &sink : nullptr);
     // Under MPI each rank's sink took its own voxels' arrivals (Distribution.h).
     if (!impl.glossyDirect.empty()) {
-        Distribution::world().combine(&impl.glossyDirect[0][0], 3 * impl.glossyDirect.size());
+        impl.ranksFor(mOptions).combine(&impl.glossyDirect[0][0], 3 * impl.glossyDirect.size());
     }
     const std::vector<openvdb::Vec3f>& D = impl.direct.irradiance;
     if (mScene.isRgb()) {
@@ -1094,7 +1101,8 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
         }
         bytes = kept > SIZE_MAX - bytes ? SIZE_MAX : bytes + kept;   // a budget may be "all"
     }
-    const int slabs = options.spread == Spread::Slabs ? Distribution::world().ranks() : 1;
+    const int slabs =
+        options.spread == Spread::Slabs && options.ranks ? options.ranks->ranks() : 1;
     if (slabs > 1) {
         // One slab's share of the per-voxel arrays (no cache), each group's workspace
         // (slots, facing), one set of fronts over the whole box's lines (at most ~3 faces of
@@ -1424,7 +1432,7 @@ openvdb::GridBase::Ptr
 solveSlabs(const Scene& scene, Scene* owned, const RadiosityOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control)
 {
-    const Distribution& ranks = Distribution::world();
+    const Distribution& ranks = *options.ranks;   // distributed: solveRadiosity() checked
     if (!control.checkpoint.empty() || !control.resume.empty()) {
         OPENVDB_THROW(openvdb::ValueError, "a solve spread over slabs keeps no checkpoints");
     }
@@ -1449,6 +1457,7 @@ solveSlabs(const Scene& scene, Scene* owned, const RadiosityOptions& options,
             context->emitters = Emitters(scene);
             DirectLightOptions d;
             d.samples = options.directSamples;
+            d.ranks = options.ranks;
             // Shared out between the ranks in blocks (Distribution.h) and combined.
             DirectIrradiance D = directIrradiance(scene, context->emitters, d,
                 whole.cavities > 0 ? &whole.region : nullptr, interrupt);
@@ -1516,7 +1525,7 @@ solveRadiosity(Scene&& scene, const RadiosityOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
     openvdb::GridBase::Ptr* specular)
 {
-    if (options.spread == Spread::Slabs && Distribution::world().distributed()) {
+    if (options.spread == Spread::Slabs && options.ranks && options.ranks->distributed()) {
         if (specular) specular->reset();
         return solveSlabs(scene, &scene, options, interrupt, control);
     }
@@ -1529,7 +1538,7 @@ solveRadiosity(const Scene& scene, const RadiosityOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
     openvdb::GridBase::Ptr* specular)
 {
-    if (options.spread == Spread::Slabs && Distribution::world().distributed()) {
+    if (options.spread == Spread::Slabs && options.ranks && options.ranks->distributed()) {
         if (specular) specular->reset();
         return solveSlabs(scene, nullptr, options, interrupt, control);
     }

@@ -70,6 +70,8 @@ enum class Visibility
     RayCast
 };
 
+class Distribution;
+
 /// How a solve under mpirun (Distribution.h) shares the work between the ranks.
 enum class Spread
 {
@@ -121,7 +123,10 @@ struct RadiosityOptions
     DirectMode direct = DirectMode::Auto;
     /// Shadow rays per voxel for exact direct light (DirectLightOptions::samples), >= 1.
     int directSamples = 16;
-    /// Under mpirun: directions or slabs per rank (the same bits either way and alone).
+    /// The MPI job the solve is shared with (Distribution::join(), kept by the host; not
+    /// owned); null: this process alone.
+    const Distribution* ranks = nullptr;
+    /// With several ranks: directions or slabs per rank (the same bits either way and alone).
     Spread spread = Spread::Directions;
     /// Glossy voxels (a scene with a `specular` grid): their lobes' model and representation.
     /// They need Jacobi or in-place updates, no Anderson acceleration and the line sweeps; the
