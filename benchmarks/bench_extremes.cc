@@ -1,4 +1,4 @@
-// Issue 8's extremes, measured (tables in BENCHMARKS.md "Extremes"):
+// Issue 8's extremes, measured (tables in docs/journal/2026-12-01-extremes.md):
 //  1. the furnace box across albedos from 0 to 1 - 1e-6: sweeps to 1e-4 of E / (1 - rho) with
 //     plain in-place sweeps and with Anderson, and the error where each stops, in the precision
 //     Precision::Auto picks and, above 0.999, also forced to float; then the cost of the double

@@ -1,11 +1,12 @@
 // Canonical scenes and clouds shared by tests, samples and benchmarks.
 //
-// Every builder returns the grids of one `.vdb` file following vdbrad's scene contract (README,
-// "Scene contract"): a surface scene is a Vec3f grid `normal` (world-space outward unit normals,
-// active exactly on the surface voxels) plus `albedo` (float or Vec3f) and `emission` (float) grids
-// on the same transform; a cloud is a fog-volume FloatGrid `density` (extinction per world unit).
-// Each builder documents the exact answer the scene has, where one exists, and the functions at
-// the end of this file compute those answers so tests and benchmarks need not re-derive them.
+// Every builder returns the grids of one `.vdb` file following vdbrad's scene contract
+// (docs/scene-contract.md): a surface scene is a Vec3f grid `normal` (world-space outward unit
+// normals, active exactly on the surface voxels) plus `albedo` (float or Vec3f) and `emission`
+// (float) grids on the same transform; a cloud is a fog-volume FloatGrid `density` (extinction per
+// world unit). Each builder documents the exact answer the scene has, where one exists, and the
+// functions at the end of this file compute those answers so tests and benchmarks need not
+// re-derive them.
 //
 // Resolution `res` is the number of voxels along the scene's longest axis; the voxel size is
 // (world extent) / res, so a scene keeps its world size at every resolution.

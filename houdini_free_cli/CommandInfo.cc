@@ -243,7 +243,7 @@ runCompare(const Arguments& a)
             + " and " + withCommas(B.size()) + " voxels: not the same scene");
     }
     // B is the reference: mean |A - B| / mean |B| and max |A - B| / max |B| over voxels and
-    // channels, the figures of BENCHMARKS.md's trade study.
+    // channels, the figures of the trade study (docs/journal/2026-11-25-speed-accuracy-trade.md).
     double diff = 0.0, total = 0.0, worst = 0.0, largest = 0.0;
     for (const auto& [xyz, b] : B) {
         const auto it = A.find(xyz);

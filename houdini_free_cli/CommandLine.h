@@ -2,10 +2,10 @@
 //
 // Names, one-line docs, positional arguments and options {name, default, example, doc, choices or
 // range} live in a single table (Commands.cc). Parsing, `--help`, "did you mean" suggestions and
-// the README's command table (`vdbrad help --markdown`) are all generated from it, so they cannot
-// drift. The whole command line is parsed, type-checked and range-checked before any heavy work
-// starts: a typo or a value out of range fails in milliseconds and leaves no output. This file
-// knows nothing of OpenVDB (it compiles fast).
+// the command table of docs/command-line.md (`vdbrad help --markdown`) are all generated from it,
+// so they cannot drift. The whole command line is parsed, type-checked and range-checked before
+// any heavy work starts: a typo or a value out of range fails in milliseconds and leaves no
+// output. This file knows nothing of OpenVDB (it compiles fast).
 #pragma once
 
 #include <functional>
@@ -114,7 +114,7 @@ std::optional<std::string> suggest(const std::string& word,
 std::string commandHelp(const CommandSpec& command);
 /// Overview of all commands.
 std::string overviewHelp(const std::vector<CommandSpec>& commands);
-/// Markdown table of every command and option (the README's command reference).
+/// Markdown table of every command and option (the command reference of docs/command-line.md).
 std::string markdownReference(const std::vector<CommandSpec>& commands);
 
 } // namespace cli

@@ -5,8 +5,8 @@
 # SANITIZE_EXCLUDE (a ctest -E regex) override the choice below.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# The suites CI can afford (measured in BENCHMARKS.md, "Hardening"): every reader of untrusted input
-# (files, meshes, command lines, through the tool itself) and each solver once.
+# The suites CI can afford (measured in docs/journal/2026-12-01-hardening.md): every reader of
+# untrusted input (files, meshes, command lines, through the tool itself) and each solver once.
 suites=${SANITIZE_SUITES:-"test_cli;test_io;test_scene;test_mesh"}
 [ "$suites" = all ] && suites=""
 # GridIOTest.MalformedBytesGiveIoErrors: some cuts make OpenVDB's bloscFromStream new[] ~100 TB;

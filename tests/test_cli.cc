@@ -1,5 +1,5 @@
 // The `vdbrad` command-line tool, driven as a user drives it: pipes, errors, help, interop with
-// Debian's vdb_tool / vdb_print, and the README's command reference.
+// Debian's vdb_tool / vdb_print, and the command reference of docs/command-line.md.
 #include "ToolTest.h"
 #include "vdbrad/vdbrad.h"
 

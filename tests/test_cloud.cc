@@ -205,8 +205,8 @@ TEST_F(CloudTest, ForwardScatteringSlabAgreesWithTheExactSolution)
     // Henyey-Greenstein g = 0.848 (the cloud), omega0 = 1, tau = 10, sun at the zenith,
     // periodic 4 x 20 x 4 voxels, 967 directions with weights exact for harmonics to degree 16,
     // order 8 with delta-M and the full phase for the first scattering, against adding-doubling
-    // (0.4261428). Measured +0.32% (BENCHMARKS.md, "Harmonic weights": 303 directions give
-    // -1.2% here, their angular error, which the cells' aliasing used to offset to +0.4%).
+    // (0.4261428). Measured +0.32% (docs/journal/2026-12-04-harmonic-weights.md: 303 directions
+    // give -1.2% here, their angular error, which the cells' aliasing used to offset to +0.4%).
     const Cloud cloud = slab(4, 20, 4, 10.0, 1.f);
     CloudTransferOptions o;
     o.periodic = true;
@@ -268,8 +268,8 @@ TEST_F(CloudTest, RaisingThePhaseOrderDoesNotAlias)
 TEST_F(CloudTest, ConservativeSlabAgreesWithTheExactSolution)
 {
     // Isotropic, omega0 = 1, sun at the zenith, tau = 1, periodic 4 x 20 x 4 voxels, 303
-    // directions, against adding-doubling (CloudReference.h, no shared code; 0.3413288).
-    // Measured: 0.34124, -0.02% (BENCHMARKS.md: -0.7% at tau 10).
+    // directions, against adding-doubling (CloudReference.h, no shared code; 0.3413288). Measured:
+    // 0.34124, -0.02% (docs/journal/2026-11-25-cloud-sweeps-vs-exact-slab.md: -0.7% at tau 10).
     const Cloud cloud = slab(4, 20, 4, 1.0, 1.f);
     CloudTransferOptions o;
     o.periodic = true;

@@ -5,8 +5,9 @@
 // multiples of the reported standard error; every run has a fixed seed, so a pass or fail is
 // reproducible.
 //
-// The delta-Eddington table (g = 0.848, omega0 = 1, mu0 = 1) is printed for BENCHMARKS.md. For a
-// precise table set VDBRAD_CLOUD_REFERENCE_PHOTONS (photons per optical thickness, default 2e5):
+// The delta-Eddington table (g = 0.848, omega0 = 1, mu0 = 1) is printed for
+// docs/journal/2026-11-25-cloud-sweeps-vs-exact-slab.md. For a precise table set
+// VDBRAD_CLOUD_REFERENCE_PHOTONS (photons per optical thickness, default 2e5):
 //     VDBRAD_CLOUD_REFERENCE_PHOTONS=10000000 ./test_cloud_reference --gtest_filter='*Table*'
 #include "CloudReference.h"
 

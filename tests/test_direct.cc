@@ -182,7 +182,8 @@ TEST_F(DirectTest, EmittersGroupIntoPatchesWithMergedOutlines)
 }
 
 // The lamp scene's floor: exact to float rounding at the default settings, for several lamp
-// sizes and heights (the sweeps' own direct light is 10-60 % off here: BENCHMARKS.md).
+// sizes and heights (the sweeps' own direct light is 10-60 % off here:
+// docs/journal/2026-12-03-exact-direct-light.md).
 TEST_F(DirectTest, LampOverFloorIsExactAtDefaultSettings)
 {
     struct Case { float r, h; };

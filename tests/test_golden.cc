@@ -5,8 +5,9 @@
 // not change a single output bit (issue 22); the physics tests' tolerances would let a changed
 // summation order through. The hashes (FNV-1a of the output arrays and of the residual history)
 // are of this machine's builds: the library is compiled without FP contraction and its vector
-// clones give the plain build's bits (BENCHMARKS.md), so they do not depend on the CPU or the
-// thread count. A change that is meant to change results (new physics) regenerates the file:
+// clones give the plain build's bits (docs/journal/2026-11-24-radiosity-solver-speed.md), so they
+// do not depend on the CPU or the thread count. A change that is meant to change results (new
+// physics) regenerates the file:
 //
 //     VDBRAD_UPDATE_GOLDEN=1 build/tests/test_golden   (writes both files in tests/golden/)
 //

@@ -650,9 +650,9 @@ TEST(Cornell, ShellGrowsAsASurfaceUpToRes256)
 {
     // The scene is a thin shell of surface voxels, so what the solver and the tests pay grows with
     // res², not res³. Checked by counting, not timing (the build time is measured by
-    // benchmarks/bench_grids.cc, BENCHMARKS.md "Canonical scenes"): doubling the resolution
-    // quadruples the surface voxels (a volume would grow 8×; the walls' O(res) edges and the
-    // blocks' rounding keep it within 2% of 4), and the shell stays under 8 res² voxels (five
+    // benchmarks/bench_grids.cc, docs/journal/2026-12-03-canonical-scenes.md): doubling the
+    // resolution quadruples the surface voxels (a volume would grow 8×; the walls' O(res) edges and
+    // the blocks' rounding keep it within 2% of 4), and the shell stays under 8 res² voxels (five
     // walls of about res² each, the two blocks and the edges: 6.26-6.31 res² at res 64 to 256).
     std::size_t previous = 0;
     for (int res : {64, 128, 256}) {

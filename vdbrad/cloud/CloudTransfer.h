@@ -52,14 +52,14 @@
 // entering one layer of a face have the same phase (a naive line's pattern repeats), so a
 // near-horizontal direction rises by a whole number of layers per wrap instead of its true
 // fraction, and light on directions that round to no rise is trapped until it interacts; the
-// narrower the box, the more directions that catches (figures: BENCHMARKS.md). The copies are
-// the same medium (a period of the box is one of the tiling), so the result is the mean over
-// them. A periodic box one voxel deep along a horizontal axis is a medium that does not vary
-// along it (a 2D cloud such as the I3RC step cloud), and neither does its radiance: each
-// direction is swept as its projection on the plane of the other axes, with the 3D path per
-// step (sweptLine(), VoxelStep.h) — exact along that axis, without copies, and what wraps
-// crosses the other axis' faces only. One voxel deep along both horizontal axes is a plane-
-// parallel medium, swept along the vertical alone: the discrete-ordinates slab.
+// narrower the box, the more directions that catches (figures:
+// docs/journal/2026-12-01-extremes.md). The copies are the same medium (a period of the box is
+// one of the tiling), so the result is the mean over them. A periodic box one voxel deep along a
+// horizontal axis is a medium that does not vary along it (a 2D cloud such as the I3RC step cloud),
+// and neither does its radiance: each direction is swept as its projection on the plane of the
+// other axes, with the 3D path per step (sweptLine(), VoxelStep.h) — exact along that axis, without
+// copies, and what wraps crosses the other axis' faces only. One voxel deep along both horizontal
+// axes is a plane-parallel medium, swept along the vertical alone: the discrete-ordinates slab.
 //
 // Ground (CloudTransferOptions::groundAlbedo, Ground.h): a Lambertian surface under the box, a
 // layer of voxels swept with the medium: light going down lands on the ground cell it meets and
@@ -154,7 +154,7 @@ struct CloudTransferOptions
     VoxelSource source = VoxelSource::Linear;
     /// Anisotropic phase: direction weights refitted to integrate harmonics exactly up to
     /// degree 2K (HarmonicQuadrature.h), so that the error falls with the direction count;
-    /// false keeps the cells' solid angles (BENCHMARKS.md, "Harmonic weights").
+    /// false keeps the cells' solid angles (docs/journal/2026-12-04-harmonic-weights.md).
     bool harmonicWeights = true;
     /// A Lambertian ground of this albedo (in [0, 1]) under the box, reflecting the light that
     /// reaches it back into the cloud (Ground.h); unset: none (light leaving downwards is gone).
@@ -230,11 +230,12 @@ public:
     static openvdb::Coord periodicCopies(const Cloud& cloud, const CloudTransferOptions& options);
     /// @brief The direction pairs asked for: options.directions, or for 0 (auto) 2000 (K / 10)^2
     /// at phase order K where the phase function's asymmetry |g| > 0.5, else 300 (measured:
-    /// BENCHMARKS.md, "Step cloud: swept in its plane, defaults").
+    /// docs/journal/2026-12-04-step-cloud-swept-in-its-plane.md).
     static int directionCount(const CloudTransferOptions& options);
     /// @brief The phase order solved: 0 for an isotropic phase, else options.phaseOrder, or
     /// for -1 (auto) the smallest K >= 8 with |chi_{K+1}| <= 0.17, at most 16 (delta-M then
-    /// moves at most 17 % of the phase function into the forward peak: BENCHMARKS.md).
+    /// moves at most 17 % of the phase function into the forward peak:
+    /// docs/journal/2026-12-04-step-cloud-swept-in-its-plane.md).
     static int phaseOrderFor(const CloudTransferOptions& options);
     /// @brief options.accelerate, or where unset: Anderson where plain source iteration would
     /// take more than ~20 sweeps to 1e-6, that is where its slowest mode, estimated as

@@ -20,7 +20,8 @@
 // another name; the file's own grids are left as they are, so they pass through to the output
 // at their own precision.
 //
-// Everything else passes through untouched. The full contract is documented in README.md.
+// Everything else passes through untouched. The full contract is documented in
+// docs/scene-contract.md.
 #pragma once
 
 #include <openvdb/openvdb.h>

@@ -10,9 +10,9 @@
 // one thread, silent, with limits on memory, CPU and wall-clock time), which reads every leaf
 // buffer, frees everything and exits; the parent parses only if the child succeeded, and reports
 // a child's crash or error as an IoError. Cost: the child's parse (one thread, in a fresh
-// process) plus the fork, a few plain parses (BENCHMARKS.md, "Crash guard"), where solving the
-// scene takes minutes. Where fork() or waitpid() are unavailable (no process left, SIGCHLD ignored by the
-// application), the bytes are parsed unguarded.
+// process) plus the fork, a few plain parses (docs/journal/2026-12-01-crash-guard.md), where
+// solving the scene takes minutes. Where fork() or waitpid() are unavailable (no process left,
+// SIGCHLD ignored by the application), the bytes are parsed unguarded.
 // Writing: the file is serialised in memory, written to a temporary file in the destination's
 // folder, flushed and renamed over the destination: a failure (full disk, cancel) leaves the
 // destination as it was and no partial file. Standard output gets the same bytes in one go.

@@ -17,7 +17,8 @@
 // directions' light in the serial tool's order and the result is the serial tool's, bit for
 // bit. A rank runs whichever group's next pass has its input, on one thread: run one rank per
 // core. With G groups in flight and K ranks, a direction's round trip is 2K - 1 slab passes of
-// which each rank does two, so the ranks are kept busy while G >= K (BENCHMARKS.md).
+// which each rank does two, so the ranks are kept busy while G >= K
+// (docs/journal/2026-12-05-slab-distribution.md).
 #pragma once
 
 #include "vdbrad/core/VoxelIndex.h"

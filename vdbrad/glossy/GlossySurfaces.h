@@ -49,9 +49,10 @@
 //
 // Time: the reflection is one dense product over the lobe's support per voxel (Eigen's, ~100^2
 // for 162 points), the sweeps three loads per glossy sender and three splats per glossy receiver
-// per direction (BENCHMARKS.md, "Glossy surfaces"). Harmonics: (L + 1)^2 loads and splats
-// instead of three, and a reflection of two rotations (~L^3) and one dense N^2 product: 3-4x
-// the control points' solve at L = 8 (BENCHMARKS.md, "Spherical harmonics as a whole solve").
+// per direction (docs/journal/2026-12-05-glossy-surfaces.md). Harmonics: (L + 1)^2 loads and
+// splats instead of three, and a reflection of two rotations (~L^3) and one dense N^2 product:
+// 3-4x the control points' solve at L = 8
+// (docs/journal/2026-12-05-spherical-harmonics-whole-solve.md).
 #pragma once
 
 #include "vdbrad/glossy/Brdf.h"

@@ -22,9 +22,9 @@
 // stratified 16 x 16 grid per w_i: sharp lobes are integrated as well as broad ones), the outer
 // one is a quadrature of the upper hemisphere; K is then made symmetric (reciprocity).
 //
-// Unlike the control points' kernel, K is not positive: a truncated lobe rings, and the
-// reflected light may be negative in directions away from a sharp lobe. That is a property of the
-// basis, kept as it is, so that the comparison is honest (BENCHMARKS.md, "Glossy surfaces").
+// Unlike the control points' kernel, K is not positive: a truncated lobe rings, and the reflected
+// light may be negative in directions away from a sharp lobe. That is a property of the basis, kept
+// as it is, so that the comparison is honest (docs/journal/2026-12-05-glossy-surfaces.md).
 #pragma once
 
 #include "vdbrad/glossy/Brdf.h"

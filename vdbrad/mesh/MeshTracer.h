@@ -4,11 +4,11 @@
 //
 // A voxelised wall is drawn as voxel cubes (or planes within them) that stick out up to a voxel
 // beyond the mesh: at the main job's settings that outline error is two thirds of the picture's
-// error against a path tracer of the same mesh (BENCHMARKS.md). The tracer bins the triangles
-// into a sparse grid of cubic cells (a VoxelIndex over the cells any triangle meets, exactly, by
-// the voxelizer's separating-axis test) and walks a ray through the cells with the renderer's own
-// hierarchical march, testing the triangles of each cell (Moller-Trumbore, two-sided) until a hit
-// lies within the cells already crossed.
+// error against a path tracer of the same mesh (docs/journal/2026-12-03-against-blender-cycles.md).
+// The tracer bins the triangles into a sparse grid of cubic cells (a VoxelIndex over the cells any
+// triangle meets, exactly, by the voxelizer's separating-axis test) and walks a ray through the
+// cells with the renderer's own hierarchical march, testing the triangles of each cell
+// (Moller-Trumbore, two-sided) until a hit lies within the cells already crossed.
 #pragma once
 
 #include "vdbrad/core/VoxelIndex.h"

@@ -64,7 +64,7 @@ struct VoxelizeOptions
     uint64_t maxVoxels = uint64_t(1) << 28;
 };
 
-/// @brief Voxelize @a mesh into the grids of a surface scene (README, "Scene contract" (b)):
+/// @brief Voxelize @a mesh into the grids of a surface scene (docs/scene-contract.md, form (b)):
 /// `normal` (vec3s, world-space unit normals, active on the surface voxels), `albedo` (float, or
 /// vec3s when any material colour is not grey; only if the mesh has materials), `emission`
 /// (likewise; only if something emits), `specular` (float or vec3s) and `roughness` (float) when

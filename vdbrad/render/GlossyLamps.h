@@ -5,10 +5,11 @@
 // meets a glossy voxel would then see the lobe's light spread evenly over the hemisphere, and a
 // highlight seen in another glossy surface (the lamp on a polished block, seen in its
 // neighbour) comes out as a uniform glow: +21 % on the Cornell box's tall block against Cycles
-// (BENCHMARKS.md, "Glossy surfaces"). Most of a highlight is the lamps' light, which a renderer
-// knows exactly: per glossy voxel, the lamps' arrivals at its centre (DirectLightSampler, shadow
-// rays) and their share of its reflected radiosity, ks sum E (the lobes reflect exactly ks:
-// Brdf.h). sent() takes that share out of the even value and puts it back through the lobe,
+// (docs/journal/2026-12-05-glossy-cornell-vs-cycles.md). Most of a highlight is the lamps'
+// light, which a renderer knows exactly: per glossy voxel, the lamps' arrivals at its centre
+// (DirectLightSampler, shadow rays) and their share of its reflected radiosity, ks sum E (the
+// lobes reflect exactly ks: Brdf.h). sent() takes that share out of the even value and puts it
+// back through the lobe,
 //
 //     sent(w) = reflected - ks sum_l E_l + ks sum_l E_l pi lobe(l, w),
 //

@@ -14,7 +14,7 @@
 //     factor keeps the other side of a thin wall and a perpendicular wall at a corner from bleeding
 //     in; if every weight vanishes the hit voxel's own value is used;
 //   - a cloud's emission and absorption along the ray, when the file has a `density` fog volume
-//     (README, "Scene contract"): extinction sigma_t (per world unit), source S = omega0 J with J
+//     (docs/scene-contract.md): extinction sigma_t (per world unit), source S = omega0 J with J
 //     the cloud solver's mean intensity. Voxels are piecewise constant, so the transfer equation
 //     dL/ds = -sigma_t (L - S) integrates exactly per voxel chord of length l:
 //         L += T (1 - exp(-sigma_t l)) S,   T *= exp(-sigma_t l),

@@ -86,7 +86,7 @@ private:
     size_t mLostEmitters = 0;
 };
 
-/// @brief Build the cloud of a file's grids (README, "Scene contract").
+/// @brief Build the cloud of a file's grids (docs/scene-contract.md).
 /// @throw openvdb::KeyError   no density grid
 /// @throw openvdb::TypeError  density is not a float grid, albedo neither float nor vec3s
 /// @throw openvdb::KeyError   a named emission grid missing

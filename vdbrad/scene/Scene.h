@@ -109,7 +109,7 @@ private:
     GridRoles::SurfaceKind mKind = GridRoles::SurfaceKind::None;
 };
 
-/// @brief Build the surface scene of a file's grids (README, "Scene contract").
+/// @brief Build the surface scene of a file's grids (docs/scene-contract.md).
 /// @throw openvdb::KeyError   no surface grid (neither a level set nor `normal`)
 /// @throw openvdb::TypeError  a contract grid has the wrong value type
 /// @throw openvdb::ValueError empty surface, NaN/Inf values, zero-length normals, albedo outside

@@ -19,7 +19,7 @@
 // neighbourhood says which way a wall runs from each voxel: spread()). A block standing on a
 // floor makes a concave edge (its face runs up, in front of the floor's plane): nothing is cut.
 // Without the cut the tall block lost up to 18 % of its direct light over its top ten rows to
-// its top face's overhang (BENCHMARKS.md, "Exact direct light").
+// its top face's overhang (docs/journal/2026-12-03-exact-direct-light.md).
 #pragma once
 
 #include "vdbrad/core/VoxelIndex.h"

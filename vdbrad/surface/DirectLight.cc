@@ -23,7 +23,8 @@ using openvdb::Vec3d;
 // A patch farther than this many of its radii is a point source: for a disk seen head-on the
 // point value a^2 / h^2 overestimates a^2 / (h^2 + a^2) by (a / h)^2, here 1e-3.
 constexpr double kFarRadii = 32.0;
-// Where a voxel's first rays disagree, it is cast this many times as many (BENCHMARKS.md).
+// Where a voxel's first rays disagree, it is cast this many times as many
+// (docs/journal/2026-12-03-exact-direct-light.md).
 constexpr size_t kPenumbra = 4;
 // A receiver this close to a patch's plane (voxels) is on it: it sees none of it.
 constexpr double kOnPlane = 1e-9;

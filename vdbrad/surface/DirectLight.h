@@ -23,7 +23,7 @@
 // based hash of (seed, voxel), so D is bit-identical for any thread count.
 //
 // Cost: per voxel, one form factor per patch in front of it (about 20 ns per outline edge) and
-// S rays through the index tree (BENCHMARKS.md, "Exact direct light").
+// S rays through the index tree (docs/journal/2026-12-03-exact-direct-light.md).
 #pragma once
 
 #include "vdbrad/scene/Emitters.h"

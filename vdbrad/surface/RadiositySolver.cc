@@ -669,7 +669,7 @@ struct RadiositySolver::Engine
                 // Each glossy voxel reflects what its points received (in group order), once
                 // per iteration: a reflection costs ~support^2 products, a sweep phase a few
                 // per direction, and updating the lobes after the first half too cost more
-                // (BENCHMARKS.md, "Glossy surfaces") than the half-iteration they gain.
+                // (docs/journal/2026-12-05-glossy-surfaces.md) than the half-iteration they gain.
                 tbb::parallel_for(tbb::blocked_range<size_t>(0, glossyN),
                     [&](const tbb::blocked_range<size_t>& r) {
                         std::vector<WideT> I(P);

@@ -19,8 +19,8 @@
 // Precision: float, or double for albedos near 1 (Precision.h).
 //
 // Threads: directions are dealt to a fixed number of groups (SweepSchedule.h, independent of the
-// thread count); each group sweeps its directions one after the other into its own accumulator, and the
-// accumulators are added in group order. So the result is bit-identical for any thread count.
+// thread count); each group sweeps its directions one after the other into its own accumulator, and
+// the accumulators are added in group order. So the result is bit-identical for any thread count.
 // A grey scene (no RGB input) is solved in floats; an RGB one in Vec3f, with no cost to the other.
 #pragma once
 
@@ -114,8 +114,9 @@ struct RadiosityOptions
     /// Bytes the solver may keep to remember what each voxel sees along each direction
     /// (VisibilityCache.h, ~1.2 bytes per voxel and direction, ~0.8 where the budget is short):
     /// a kept direction is swept once, and later iterations gather along it instead of
-    /// sweeping it (faster: BENCHMARKS.md, "Visibility cache"; the same results, bit for bit).
-    /// Directions are kept while the budget lasts. 0, or a single iteration: every iteration sweeps every direction.
+    /// sweeping it (faster: docs/journal/2026-11-24-radiosity-solver-speed.md; the same
+    /// results, bit for bit). Directions are kept while the budget lasts. 0, or a single
+    /// iteration: every iteration sweeps every direction.
     size_t visibilityCache = 0;
     /// Direct light from the emitters: integrated exactly (DirectLight.h; the sweeps then carry
     /// B - E, the reflected light, and the output adds E back), sent through the sweeps like

@@ -58,7 +58,7 @@ public:
     /// @brief The directions of the boundary of B_R, one per ± pair.
     /// @param radius  R, in voxels, in [1, kMaxRadius]. Build time and memory are O(R²)
     ///                (48 bytes per pair; R = 100: 51,867 pairs, 2.5 MB; R = 400: 834,159
-    ///                pairs, 40 MB; build times: BENCHMARKS.md, "Direction set").
+    ///                pairs, 40 MB; build times: docs/journal/2026-12-03-direction-set.md).
     /// @throw openvdb::ValueError if @a radius is outside [1, kMaxRadius].
     static DirectionSet fromRadius(int radius);
 

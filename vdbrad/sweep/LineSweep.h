@@ -401,7 +401,8 @@ public:
 
     /// @brief The same report as sweep(), built the way the thesis does (§6.2.1.1): a stable
     /// counting sort of the voxels into explicit per-line lists, then each list walked in both
-    /// senses. Kept to measure against the streaming sweep (BENCHMARKS.md), which needs no lists.
+    /// senses. Kept to measure against the streaming sweep
+    /// (docs/journal/2026-11-24-radiosity-solver-speed.md), which needs no lists.
     template<typename PayloadT, typename LoadT, typename VisitT>
     void sweepLists(const openvdb::Coord& sigma, bool reversed, Workspace<PayloadT>& work,
         std::vector<uint32_t>& starts, std::vector<uint32_t>& listed, LoadT&& load,
@@ -461,7 +462,7 @@ private:
     /// (with a margin for float rounding), every voxel past the boundary is hidden from p:
     /// the line then carries what an empty one does, and need not be sent. (Through a
     /// one-voxel wall, light goes on past the wall's receivers: most of the lines leaving a
-    /// slab of a closed room; BENCHMARKS.md.)
+    /// slab of a closed room; docs/journal/2026-12-05-slab-distribution.md.)
     struct Beyond
     {
         /// @param major  the partition's major axis (LinePartition::majorAxis(): with equal
@@ -509,8 +510,9 @@ private:
 
     /// The first @a lines of @a fronts set to the default state StateT(): by memset for a
     /// Front, whose default is zero bytes (element by element was a visible share of a sweep:
-    /// BENCHMARKS.md). The vector only grows: resizing it to each direction's line count
-    /// initialised its tail twice and, on growth, faulted in fresh pages.
+    /// docs/journal/2026-11-24-radiosity-solver-speed.md). The vector only grows: resizing it to
+    /// each direction's line count initialised its tail twice and, on growth, faulted in fresh
+    /// pages.
     template<typename StateT>
     static void clear(std::vector<StateT>& fronts, size_t lines)
     {

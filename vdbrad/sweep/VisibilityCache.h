@@ -4,7 +4,7 @@
 // Which voxel a voxel sees along a direction (LineSweep::seen) depends on the geometry only, yet
 // a line sweep recomputes it every iteration: finding the lines, the visibility rule and the
 // line fronts are most of an iteration's cost. Kept, a direction's later iterations are a gather
-// along a sequential stream (how much faster: BENCHMARKS.md, "Visibility cache").
+// along a sequential stream (how much faster: docs/journal/2026-11-24-radiosity-solver-speed.md).
 //
 // Memory: a direction's report is one entry per voxel, delta-coded against the last voxel seen
 // (neighbours in visiting order see neighbours), in one of two codes chosen for the whole cache:
@@ -15,9 +15,9 @@
 //    frequent steps (a table kept with the report), then escapes with an 8-bit step, a 16-bit
 //    step or the absolute position (2, 4 or 8 more nibbles); ~0.8 bytes per voxel and
 //    direction, so that the budget keeps ~1.5x as many directions, replayed ~1.4x slower.
-// Sizes and speeds: BENCHMARKS.md, "Visibility cache". Directions are kept first come, first
-// served while the budget (or their pool's share of it, pools()) lasts; which ones are kept,
-// and the code, change the speed, never the result.
+// Sizes and speeds: docs/performance.md. Directions are kept first come, first served while the
+// budget (or their pool's share of it, pools()) lasts; which ones are kept, and the code, change
+// the speed, never the result.
 #pragma once
 
 #include "vdbrad/sweep/LineSweep.h"
@@ -42,8 +42,9 @@ public:
     /// Kept directions are replayed together, up to kReplayed at a time (replay()), in blocks of
     /// kReplayBlock voxels: each block takes every queued direction in turn, so that the
     /// block's sums and normals stay in the first-level cache (24 KiB, RGB) while the
-    /// directions' reports and seen radiosity stream by. Block and batch sizes: BENCHMARKS.md
-    /// ("Blocked replays"); 32 directions keep progress and cancellation prompt.
+    /// directions' reports and seen radiosity stream by. Block and batch sizes:
+    /// docs/journal/2026-11-24-radiosity-solver-speed.md; 32 directions keep progress and
+    /// cancellation prompt.
     static constexpr size_t kReplayed = 32;
     static constexpr uint32_t kReplayBlock = 1024;
 
@@ -99,7 +100,7 @@ public:
     /// Per voxel, what worstBytes() grows by, rounded up (memory estimates).
     static constexpr size_t kWorstBytesPerVoxel = 5;
     /// The same, as memory estimates count it: above the sizes measured on the canonical scenes
-    /// (BENCHMARKS.md, "Visibility cache"); what the budget allows is the hard cap.
+    /// (docs/performance.md); what the budget allows is the hard cap.
     static size_t typicalBytes(size_t voxels, Code code)
     {
         return code == Code::Bytes ? 2 * voxels : kHeaderBytes + voxels;
