@@ -20,8 +20,8 @@
 // neighbour on the line) takes the line's light even where c > 0, and a receiver right before a
 // medium voxel sends into it. A normal only approximates the side at a digital edge, a corner
 // or a staircase of a curved wall, where lines from the fog meet voxels whose normal faces
-// along them; their backs absorbed 4 % of the power in the Cornell box before. (So a voxel with
-// fog on both sides takes light from both.)
+// along them; by their normals alone, their backs would absorb 4 % of the power in the Cornell
+// box. (So a voxel with fog on both sides takes light from both.)
 //
 // The first receiver of a run along t is the last voxel of the run along -t, so the set of
 // (direction, sense) through which a voxel receives mirrors the set it sends through: its area

@@ -7,7 +7,7 @@
 // layer: exact for horizontally uniform media (slabs), energy-conserving always. The layer is
 // that of the midpoint of the digital step that crosses the face (not of a voxel centre projected
 // along the direction, which sits up to half a voxel off the line's axis and, along steep
-// directions, moved the light several layers per wrap).
+// directions, moves the light several layers per wrap).
 //
 // Exactly horizontal directions (sigma_up = 0) never rise at all, but each stands for a cell of
 // the sphere that spans elevations up to beta = sqrt(Omega) / 2 either way, whose light would

@@ -10,9 +10,9 @@
 // ranks and threads. Every rank keeps the whole scene and the iterate; what moves per
 // half-iteration is (K - 1) / K of four groups' per-voxel sums per rank. (The data distribution
 // of §6.2.2, each rank with one slab of the scene, is SlabDistribution.h; it passes line fronts
-// from rank to rank with send() and receive().) Per-voxel work that depends on the voxel alone (the exact direct light) is
-// shared out in blocks (ownsBlock) and combined by a sum in which one rank's value meets the
-// others' zeros (combine): exact too.
+// from rank to rank with send() and receive().) Per-voxel work that depends on the voxel alone (the
+// exact direct light) is shared out in blocks (ownsBlock) and combined by a sum in which one rank's
+// value meets the others' zeros (combine): exact too.
 //
 // The host creates the job's context (join(), once, in main() or at module import) and hands it
 // to the solves through their options (`ranks`); the library keeps no global and never starts

@@ -11,8 +11,8 @@
 // the lobe extended evenly below the horizon, lobe(w_i, w_o) = lobe(w_i', w_o') with ' the
 // mirror image in the tangent plane: no light comes from there and none is sent there, so the
 // kernel's values there are free, and the even extension is continuous at the horizon where
-// the lobe cut to 0 rang (Gibbs) over ~180/L degrees above it: at L = 8, Phong of roughness
-// 0.7, the worst error fell from 29 % to 4.2 % of the peak (tests/test_glossy.cc). K is then
+// the lobe cut to 0 rings (Gibbs) over ~180/L degrees above it: at L = 8, Phong of roughness
+// 0.7, the worst error is 4.2 % of the peak (29 % if cut to 0; tests/test_glossy.cc). K is
 // the least-squares (L2) projection of the extended lobe, both arguments truncated at order L,
 // and only the harmonics even in the local z carry it (Y_lm(x, y, -z) = (-1)^(l+m) Y_lm):
 // (L + 1)(L + 2) / 2 of them, all of them once rotated into a normal's frame. Z, the cosine

@@ -19,9 +19,10 @@
 // Precision: the history is stored in the state's own type T (float, or double for a surface
 // solve with albedos near 1, RadiositySolver.h: there the combination's coefficients grow like
 // 1 / (1 - rho), and a float history would amplify its rounding by as much); the small
-// least-squares problem is solved in double. Its normal equations are factored by a Cholesky decomposition that skips
-// columns whose pivot is below 1e-8 of their squared norm (nearly dependent differences, which
-// appear as the iteration converges), newest first, so the oldest redundant ones are dropped.
+// least-squares problem is solved in double. Its normal equations are factored by a Cholesky
+// decomposition that skips columns whose pivot is below 1e-8 of their squared norm (nearly
+// dependent differences, which appear as the iteration converges), newest first, so the oldest
+// redundant ones are dropped.
 //
 // Determinism: every dot product is summed over fixed blocks of the state in a fixed order, so
 // the result does not depend on the thread count.

@@ -9,8 +9,8 @@
 // (with the signs), then the voxels inside each leaf. Inside a leaf the linear offset is
 // (x&7)<<6 | (y&7)<<3 | (z&7), so the voxels sorted by offset XOR mask, with mask flipping the
 // bits of every axis whose sign is negative, are exactly the signed lexicographic order. This
-// extends the componentwise order: if q - p has sigma's signs, floor(q/8) - floor(p/8) has them too,
-// so q's leaf is p's leaf or comes later.
+// extends the componentwise order: if q - p has sigma's signs, floor(q/8) - floor(p/8) has them
+// too, so q's leaf is p's leaf or comes later.
 //
 // There are 8 sign patterns; a pattern and its negation give reverse orders, so 4 base orders
 // serve every direction, each traversed forwards (sigma) or backwards (-sigma).
