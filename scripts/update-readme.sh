@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
-# Regenerates the README's command reference from the tool's command table.
+# Regenerates the command reference in docs/command-line.md (between its commands:begin and
+# commands:end markers) from the tool's command table. (The name is historical: the reference
+# used to live in the README.)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tool=${1:-build/vdbrad}
@@ -8,7 +10,7 @@ import subprocess, sys
 ref = subprocess.run([sys.argv[1], "help", "--markdown"], check=True, capture_output=True, text=True).stdout
 begin = "<!-- commands:begin (vdbrad help --markdown) -->\n"
 end = "<!-- commands:end -->"
-s = open("README.md").read()
+s = open("docs/command-line.md").read()
 b, e = s.index(begin) + len(begin), s.index(end)
-open("README.md", "w").write(s[:b] + ref + s[e:])
+open("docs/command-line.md", "w").write(s[:b] + ref + s[e:])
 PY

@@ -283,14 +283,14 @@ TEST_F(CliTest, ReadmeCommandReferenceIsGeneratedFromTheTable)
 {
     const Result r = sh("vdbrad help --markdown");
     ASSERT_EQ(r.status, 0);
-    const std::string readme = slurp(VDBRAD_SOURCE_DIR "/README.md");
+    const std::string readme = slurp(VDBRAD_SOURCE_DIR "/docs/command-line.md");
     const std::string begin = "<!-- commands:begin (vdbrad help --markdown) -->\n";
     const std::string end = "<!-- commands:end -->";
     const size_t b = readme.find(begin), e = readme.find(end);
     ASSERT_NE(b, std::string::npos);
     ASSERT_NE(e, std::string::npos);
     EXPECT_EQ(readme.substr(b + begin.size(), e - b - begin.size()), r.out)
-        << "README's command reference is stale: regenerate it with `vdbrad help --markdown`";
+        << "docs/command-line.md's command reference is stale: regenerate it with `vdbrad help --markdown`";
 }
 
 TEST_F(CliTest, SolveWritesRadiosityWithMetadataAndPassesGridsThrough)
