@@ -26,7 +26,7 @@
 
 #include "vdbrad/core/Checkpoint.h"
 #include "vdbrad/core/Precision.h"
-#include "vdbrad/glossy/GlossySurfaces.h"
+#include "vdbrad/glossy/GlossyOptions.h"
 #include "vdbrad/scene/OutputGrids.h"
 #include "vdbrad/scene/Scene.h"
 #include "vdbrad/surface/DirectLight.h"
@@ -71,6 +71,7 @@ enum class Visibility
 };
 
 class Distribution;
+class GlossySurfaces;
 
 /// How a solve under mpirun (Distribution.h) shares the work between the ranks.
 enum class Spread

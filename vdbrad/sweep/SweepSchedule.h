@@ -22,6 +22,7 @@
 #include "vdbrad/core/Denormals.h"
 #include "vdbrad/core/Errors.h"
 #include "vdbrad/core/VoxelIndex.h"
+#include "vdbrad/distribute/Distribution.h"
 #include "vdbrad/sweep/DirectionSet.h"
 #include "vdbrad/sweep/LeafOrder.h"
 #include "vdbrad/sweep/LinePartition.h"
@@ -129,6 +130,17 @@ public:
     void forEachGroup(const SweepProgress& progress, const char* what, SelectT&& selected,
         BodyT&& body) const;
 
+    /// @brief One round of an iteration, as every solver runs it: this rank sweeps the groups
+    /// @a inRound(g) selects that it owns (forEachGroup(), @a sweep(g)), then each of those
+    /// groups' results reaches every rank from its owner (@a share(g, owner), which hands the
+    /// group's arrays to Distribution::share(); not called alone). Every rank then holds every
+    /// group, and sum() adds them in group order as one process does: the same bits for any
+    /// number of ranks and threads.
+    /// @throw vdbrad::Cancelled(@a what) if @a progress was cancelled
+    template<typename InRoundT, typename SweepT, typename ShareT>
+    void round(const SweepProgress& progress, const char* what, const Distribution& ranks,
+        InRoundT&& inRound, SweepT&& sweep, ShareT&& share) const;
+
     /// @brief @a out[k * width + c] = @a in[order[k] * width + c]: per-voxel values (@a width
     /// each) in pattern @a p's order, so that a sweep reads them sequentially.
     template<typename T>
@@ -182,6 +194,18 @@ SweepSchedule::forEachGroup(const SweepProgress& progress, const char* what, Sel
             }
         });
     if (progress.cancelled()) throw Cancelled(what);
+}
+
+template<typename InRoundT, typename SweepT, typename ShareT>
+void
+SweepSchedule::round(const SweepProgress& progress, const char* what, const Distribution& ranks,
+    InRoundT&& inRound, SweepT&& sweep, ShareT&& share) const
+{
+    forEachGroup(progress, what, [&](int g) { return inRound(g) && ranks.owns(g); }, sweep);
+    if (!ranks.distributed()) return;
+    for (int g = 0; g < kGroups; ++g) {
+        if (inRound(g) && !patternOfGroup(g).empty()) share(g, ranks.ownerOf(g));
+    }
 }
 
 template<typename T>

@@ -1,0 +1,124 @@
+#include "vdbrad/cloud/CloudTransferImpl.h"
+
+namespace vdbrad {
+
+namespace {
+
+std::string
+budgetLine(const CloudBudget& b, const CloudTransferOptions& options)
+{
+    std::ostringstream os;
+    os << "albedo " << b.albedo << ", transmittance " << b.transmittance << " (direct "
+       << b.directTransmittance << "), absorptance " << b.absorptance;
+    if (options.groundAlbedo) os << ", reflected by the ground " << b.groundReflected;
+    if (options.surfaces) {
+        os << " (left the box), emitted by the surfaces " << b.emitted - b.mediumEmitted
+           << ", absorbed by them " << b.surfaceAbsorptance;
+    }
+    if (b.mediumEmitted > 0.0) os << ", emitted by the medium " << b.mediumEmitted;
+    os << "; balance " << b.balance();
+    return os.str();
+}
+
+// iterateSolve(), framed as one progress step unless @a control reports each iteration.
+void
+iterateFramed(CloudTransfer& transfer, const SolveControl& control,
+    openvdb::util::NullInterrupter* interrupt)
+{
+    const bool framed = interrupt && !control.beforeIteration;
+    if (framed) interrupt->start("cloud transfer");
+    iterateSolve(transfer, control, interrupt);
+    if (framed) interrupt->end();
+}
+
+SolveStats
+statsOf(const CloudTransfer& transfer)
+{
+    SolveStats stats;
+    stats.directions = int(transfer.directions().size());
+    stats.iterations = transfer.iterationCount();
+    stats.residual = transfer.residuals().empty() ? 0.0 : transfer.residuals().back();
+    stats.seconds = transfer.seconds();
+    return stats;
+}
+
+// Colours (an RGB albedo of the medium or of the surfaces, RGB lamps): light of each colour
+// travels alone, so each channel is its own transfer (the medium's work three times over).
+openvdb::GridBase::Ptr
+solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
+    openvdb::GridBase::Ptr* radiosity)
+{
+    if (!control.checkpoint.empty() || !control.resume.empty()) {
+        OPENVDB_THROW(openvdb::ValueError, "checkpoints are not supported for an RGB cloud or "
+            "surface scene (three solves, one per channel)");
+    }
+    const Scene* scene = options.surfaces;
+    std::vector<openvdb::Vec3f> J(cloud.size()), B(scene ? scene->size() : 0);
+    openvdb::Vec3f albedo, transmittance, absorptance;
+    SolveStats stats;
+    double residual = 0.0;
+    for (int c = 0; c < 3; ++c) {
+        CloudTransferOptions o = options;
+        o.channel = c;
+        CloudTransfer transfer(cloud, o, interrupt);
+        iterateFramed(transfer, control, interrupt);
+        const CloudBudget& b = transfer.budget();
+        if (control.note) control.note("channel " + std::string(1, "rgb"[c]) + ": " + budgetLine(b, o));
+        const std::vector<float> j = transfer.meanIntensity();
+        const std::vector<float> r = scene ? transfer.surfaceRadiosity() : std::vector<float>();
+        for (size_t i = 0; i < J.size(); ++i) J[i][c] = j[i];
+        for (size_t v = 0; v < B.size(); ++v) B[v][c] = r[v];
+        albedo[c] = float(b.albedo);
+        transmittance[c] = float(b.transmittance);
+        absorptance[c] = float(b.absorptance);
+        const SolveStats s = statsOf(transfer);
+        stats.directions = s.directions;
+        stats.iterations = std::max(stats.iterations, s.iterations);
+        residual = std::max(residual, s.residual);
+        stats.seconds += s.seconds;
+    }
+    stats.residual = residual;
+    if (radiosity) {
+        radiosity->reset();
+        if (scene) *radiosity = makeRadiosityGrid(*scene, B, stats);
+    }
+    openvdb::Vec3SGrid::Ptr g = arrayToGrid(cloud.voxels(), J, cloud.transform(),
+        "mean_intensity");
+    g->insertMeta("vdbrad:albedo", openvdb::Vec3SMetadata(albedo));
+    g->insertMeta("vdbrad:transmittance", openvdb::Vec3SMetadata(transmittance));
+    g->insertMeta("vdbrad:absorptance", openvdb::Vec3SMetadata(absorptance));
+    g->insertMeta(meta::kIterations, openvdb::Int32Metadata(stats.iterations));
+    g->insertMeta(meta::kResidual, openvdb::FloatMetadata(float(stats.residual)));
+    g->insertMeta(meta::kDirections, openvdb::Int32Metadata(stats.directions));
+    g->insertMeta(meta::kSeconds, openvdb::FloatMetadata(float(stats.seconds)));
+    g->insertMeta(meta::kVersion, openvdb::StringMetadata(VDBRAD_VERSION_STRING));
+    return g;
+}
+
+} // namespace
+
+openvdb::GridBase::Ptr
+solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
+    openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity)
+{
+    if (isRgb(cloud, options)) {
+        if (ground) ground->reset();
+        return solveCloudRgb(cloud, options, interrupt, control, radiosity);
+    }
+    CloudTransfer transfer(cloud, options, interrupt);
+    iterateFramed(transfer, control, interrupt);
+    if (control.note) control.note(budgetLine(transfer.budget(), options));
+    if (ground) *ground = transfer.groundGrid();
+    if (radiosity) {
+        radiosity->reset();
+        if (options.surfaces) {
+            *radiosity = makeRadiosityGrid(*options.surfaces, transfer.surfaceRadiosity(),
+                statsOf(transfer));
+        }
+    }
+    return transfer.grid();
+}
+
+} // namespace vdbrad
