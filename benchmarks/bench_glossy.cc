@@ -20,6 +20,7 @@
 #include "vdbrad/core/Constants.h"
 #include "vdbrad/glossy/Brdf.h"
 #include "vdbrad/glossy/ControlPoints.h"
+#include "vdbrad/glossy/GlossySurfaces.h"
 #include "vdbrad/glossy/SphericalFit.h"
 #include "vdbrad/glossy/SphericalHarmonics.h"
 #include "vdbrad/surface/RadiositySolver.h"

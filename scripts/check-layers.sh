@@ -2,7 +2,8 @@
 # Checks that vdbrad/ keeps its layers (docs/architecture.md): a file in vdbrad/FOLDER/ includes
 # headers of its own folder and of the layers below only; folders on one level (glossy and cloud,
 # mesh and surface, reference and render) do not include each other; only the hosts include the
-# umbrella vdbrad.h. Prints each offending include as FILE:LINE and exits 1.
+# umbrella vdbrad.h; the installed headers (CMakeLists.txt's VDBRAD_PUBLIC_HEADERS) are vdbrad.h
+# and exactly what it includes, directly or not. Prints each offence and exits 1.
 #   check-layers.sh [ROOT]       check ROOT (default: this repository)
 #   check-layers.sh --self-test  also prove that an upward include fails the check
 set -euo pipefail
@@ -44,7 +45,40 @@ check() {
       bad=1
     fi
   done < <(grep -rnE '^[[:space:]]*#[[:space:]]*include[[:space:]]*[<"]vdbrad/' "$root"/vdbrad/*/ || true)
+  public_headers "$root" || bad=1
   return $bad
+}
+
+# The installed list against the closure of vdbrad.h's includes (a header missing from it breaks
+# an installed build; one too many installs an internal header as if it were API).
+public_headers() {
+  local root=$1
+  [ -f "$root/CMakeLists.txt" ] || return 0
+  python3 - "$root" <<'PY'
+import os, re, sys
+root = sys.argv[1]
+cmake = open(os.path.join(root, "CMakeLists.txt")).read()
+m = re.search(r"set\(VDBRAD_PUBLIC_HEADERS(.*?)\)", cmake, re.S)
+listed = set(m.group(1).split()) if m else set()
+seen, stack = set(), ["vdbrad.h"]
+while stack:
+    h = stack.pop()
+    if h in seen:
+        continue
+    seen.add(h)
+    path = os.path.join(root, "vdbrad", h)
+    if os.path.exists(path):
+        stack += re.findall(r'#include "vdbrad/([^"]+)"', open(path).read())
+seen.discard("core/Version.h")   # generated, installed from the build folder
+bad = False
+for h in sorted(seen - listed):
+    print(f"CMakeLists.txt: vdbrad.h includes vdbrad/{h}, missing from VDBRAD_PUBLIC_HEADERS")
+    bad = True
+for h in sorted(listed - seen):
+    print(f"CMakeLists.txt: VDBRAD_PUBLIC_HEADERS installs vdbrad/{h}, which vdbrad.h does not include")
+    bad = True
+sys.exit(1 if bad else 0)
+PY
 }
 
 if [ "${1:-}" = "--self-test" ]; then

@@ -14,6 +14,7 @@
 #include "vdbrad/core/ProcessInfo.h"
 #include "vdbrad/core/Version.h"
 #include "vdbrad/core/VoxelIndex.h"
+#include "vdbrad/distribute/Distribution.h"
 #include "vdbrad/mesh/Mesh.h"
 #include "vdbrad/mesh/Voxelizer.h"
 #include "vdbrad/reference/MonteCarloSolver.h"
