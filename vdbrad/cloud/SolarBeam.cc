@@ -103,13 +103,20 @@ struct Marcher
     }
 };
 
-} // namespace
+// The grid of parallel rays: ray (row, col) starts at origin + col e1 + row e2 and stands for a
+// patch of the beam's cross-section of area `area` (voxel faces).
+struct RayGrid
+{
+    Vec3d origin, e1, e2;
+    int rows = 0, cols = 0;
+    double area = 0.0;
+};
 
-SolarBeamResult
-traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
-    const Vec3d& toSun, int up, bool periodic, int raysPerVoxel, double irradiance,
-    openvdb::util::NullInterrupter* interrupt, const GroundLayer* ground,
-    const std::vector<uint8_t>* opaque)
+// Throws for invalid arguments (traceSolarBeam()'s), the first one found in the order below;
+// returns |toSun|.
+double
+checkArguments(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
+    const Vec3d& toSun, int up, int raysPerVoxel, double irradiance, const GroundLayer* ground)
 {
     if (up < 0 || up > 2) OPENVDB_THROW(openvdb::ValueError, "up axis must be 0, 1 or 2");
     if (opticalDepth.size() != voxels.size()) {
@@ -129,6 +136,100 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
         OPENVDB_THROW(openvdb::ValueError, "the sun must be above the horizon (elevation > 0.06 "
             "degrees)");
     }
+    return len;
+}
+
+// Rays on the plane of the box [lo, hi]'s top face, @a spacing apart along the horizontal axes:
+// over one period (periodic), or over the footprint and upstream of it as far as rays along
+// @a d still reach the sunlit sides (an open box over a ground).
+RayGrid
+topFaceGrid(const Vec3d& lo, const Vec3d& hi, const Vec3d& d, int up, bool periodic,
+    int raysPerVoxel, double spacing)
+{
+    RayGrid grid;
+    const int h1 = (up + 1) % 3, h2 = (up + 2) % 3;
+    grid.e1 = Vec3d(0.0); grid.e1[h1] = spacing;
+    grid.e2 = Vec3d(0.0); grid.e2[h2] = spacing;
+    grid.origin = lo;
+    grid.origin[up] = hi[up];
+    Vec3d end = hi;
+    if (!periodic) {
+        // A ray through the bottom of a sunlit side started this far upstream.
+        const double reach = (hi[up] - lo[up]) / std::abs(d[up]);
+        for (const int k : {h1, h2}) {
+            const double shift = -d[k] * reach;
+            const double steps = std::ceil(std::abs(shift) / spacing - 1e-9);
+            if (shift < 0.0) grid.origin[k] -= steps * spacing;
+            else end[k] += steps * spacing;
+        }
+    }
+    grid.cols = int(std::lround((end[h1] - grid.origin[h1]) * raysPerVoxel));
+    grid.rows = int(std::lround((end[h2] - grid.origin[h2]) * raysPerVoxel));
+    grid.origin += 0.5 * (grid.e1 + grid.e2);
+    grid.area = spacing * spacing * std::abs(d[up]);
+    return grid;
+}
+
+// Rays on the plane normal to the beam @a d, @a spacing apart, over the shadow of the box
+// [lo, hi], starting well outside the box, upstream.
+RayGrid
+crossSectionGrid(const Vec3d& lo, const Vec3d& hi, const Vec3d& d, int raysPerVoxel,
+    double spacing)
+{
+    RayGrid grid;
+    // Orthonormal axes of the cross-section, and the shadow's extent along them.
+    const Vec3d a = std::abs(d[0]) < 0.9 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0);
+    const Vec3d u = d.cross(a).unit(), v = d.cross(u);
+    double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300;
+    const Vec3d centre = 0.5 * (lo + hi);
+    for (int c = 0; c < 8; ++c) {
+        const Vec3d corner(c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]);
+        const Vec3d r = corner - centre;
+        u0 = std::min(u0, r.dot(u)); u1 = std::max(u1, r.dot(u));
+        v0 = std::min(v0, r.dot(v)); v1 = std::max(v1, r.dot(v));
+    }
+    grid.cols = int(std::ceil((u1 - u0) * raysPerVoxel));
+    grid.rows = int(std::ceil((v1 - v0) * raysPerVoxel));
+    grid.e1 = u * spacing;
+    grid.e2 = v * spacing;
+    // Start well outside the box, upstream.
+    grid.origin = centre + u * u0 + v * v0 - d * ((hi - lo).length() + 1.0)
+        + 0.5 * (grid.e1 + grid.e2);
+    grid.area = spacing * spacing;
+    return grid;
+}
+
+// Slab test of the ray o + t d against the box [lo, hi]: narrows [t0, t1] to the part inside,
+// false if it misses.
+inline bool
+clipToBox(const Vec3d& o, const Vec3d& d, const Vec3d& lo, const Vec3d& hi, double& t0,
+    double& t1)
+{
+    bool hit = true;
+    for (int k = 0; k < 3 && hit; ++k) {
+        if (d[k] == 0.0) {
+            hit = o[k] >= lo[k] && o[k] <= hi[k];
+            continue;
+        }
+        double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
+        if (a > b) std::swap(a, b);
+        t0 = std::max(t0, a);
+        t1 = std::min(t1, b);
+        hit = t0 < t1;
+    }
+    return hit;
+}
+
+} // namespace
+
+SolarBeamResult
+traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
+    const Vec3d& toSun, int up, bool periodic, int raysPerVoxel, double irradiance,
+    openvdb::util::NullInterrupter* interrupt, const GroundLayer* ground,
+    const std::vector<uint8_t>* opaque)
+{
+    const double len = checkArguments(voxels, opticalDepth, toSun, up, raysPerVoxel, irradiance,
+        ground);
     SolarBeamResult result;
     const size_t n = voxels.size();
     if (n == 0) return result;
@@ -142,83 +243,26 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const double spacing = 1.0 / raysPerVoxel;
 
     // The ray grid: on the top face (periodic), or on the plane normal to the beam over the
-    // box's shadow (open). Each ray stands for a patch of the beam's cross-section of area
-    // `area` (voxel faces). An open box over a ground launches its rays from the plane of the
-    // top face too, over the footprint and upstream of it as far as rays still reach the sunlit
-    // sides: the rays then meet the ground on a lattice as regular as the top face's, the same
-    // number per cell (from the plane normal to the beam their spacing on the ground is
+    // box's shadow (open). An open box over a ground launches its rays from the plane of the
+    // top face too: the rays then meet the ground on a lattice as regular as the top face's, the
+    // same number per cell (from the plane normal to the beam their spacing on the ground is
     // stretched by 1 / cos(zenith): stripes in the ground's irradiance).
-    Vec3d origin, e1, e2;
-    int rows = 0, cols = 0;
-    double area = 0.0;
-    if (periodic || ground) {
-        const int h1 = (up + 1) % 3, h2 = (up + 2) % 3;
-        e1 = Vec3d(0.0); e1[h1] = spacing;
-        e2 = Vec3d(0.0); e2[h2] = spacing;
-        origin = lo;
-        origin[up] = hi[up];
-        Vec3d end = hi;
-        if (!periodic) {
-            // A ray through the bottom of a sunlit side started this far upstream.
-            const double reach = (hi[up] - lo[up]) / std::abs(d[up]);
-            for (const int k : {h1, h2}) {
-                const double shift = -d[k] * reach;
-                const double steps = std::ceil(std::abs(shift) / spacing - 1e-9);
-                if (shift < 0.0) origin[k] -= steps * spacing;
-                else end[k] += steps * spacing;
-            }
-        }
-        cols = int(std::lround((end[h1] - origin[h1]) * raysPerVoxel));
-        rows = int(std::lround((end[h2] - origin[h2]) * raysPerVoxel));
-        origin += 0.5 * (e1 + e2);
-        area = spacing * spacing * std::abs(d[up]);
-    } else {
-        // Orthonormal axes of the cross-section, and the shadow's extent along them.
-        const Vec3d a = std::abs(d[0]) < 0.9 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0);
-        const Vec3d u = d.cross(a).unit(), v = d.cross(u);
-        double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300;
-        const Vec3d centre = 0.5 * (lo + hi);
-        for (int c = 0; c < 8; ++c) {
-            const Vec3d corner(c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]);
-            const Vec3d r = corner - centre;
-            u0 = std::min(u0, r.dot(u)); u1 = std::max(u1, r.dot(u));
-            v0 = std::min(v0, r.dot(v)); v1 = std::max(v1, r.dot(v));
-        }
-        cols = int(std::ceil((u1 - u0) * raysPerVoxel));
-        rows = int(std::ceil((v1 - v0) * raysPerVoxel));
-        e1 = u * spacing;
-        e2 = v * spacing;
-        // Start well outside the box, upstream.
-        origin = centre + u * u0 + v * v0 - d * ((hi - lo).length() + 1.0) + 0.5 * (e1 + e2);
-        area = spacing * spacing;
-    }
+    const RayGrid grid = periodic || ground
+        ? topFaceGrid(lo, hi, d, up, periodic, raysPerVoxel, spacing)
+        : crossSectionGrid(lo, hi, d, raysPerVoxel, spacing);
 
     std::atomic<int64_t> enteredRays{0}, keptFixed{0};
     std::atomic<bool> cancelled{false};
-    tbb::parallel_for(tbb::blocked_range<int>(0, rows), [&](const tbb::blocked_range<int>& r) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, grid.rows),
+        [&](const tbb::blocked_range<int>& r) {
         if (cancelled || openvdb::util::wasInterrupted(interrupt)) { cancelled = true; return; }
         VoxelIndex::Accessor acc(voxels.tree());
         int64_t entered = 0, kept = 0;
         for (int row = r.begin(); row != r.end(); ++row) {
-            for (int col = 0; col < cols; ++col) {
-                const Vec3d o = origin + e1 * double(col) + e2 * double(row);
+            for (int col = 0; col < grid.cols; ++col) {
+                const Vec3d o = grid.origin + grid.e1 * double(col) + grid.e2 * double(row);
                 double t0 = 0.0, t1 = 1e300;
-                if (!periodic) {
-                    // Slab test against the box.
-                    bool hit = true;
-                    for (int k = 0; k < 3 && hit; ++k) {
-                        if (d[k] == 0.0) {
-                            hit = o[k] >= lo[k] && o[k] <= hi[k];
-                            continue;
-                        }
-                        double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
-                        if (a > b) std::swap(a, b);
-                        t0 = std::max(t0, a);
-                        t1 = std::min(t1, b);
-                        hit = t0 < t1;
-                    }
-                    if (!hit) continue;
-                }
+                if (!periodic && !clipToBox(o, d, lo, hi, t0, t1)) continue;
                 ++entered;
                 kept += marcher.march(o, d, t0, t1, acc);
             }
@@ -228,7 +272,7 @@ traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     });
     if (cancelled) throw Cancelled("solar beam");
 
-    const double rayPower = irradiance * area;
+    const double rayPower = irradiance * grid.area;
     result.deposited.resize(n);
     for (size_t i = 0; i < n; ++i) {
         result.deposited[i] = double(deposited[i].load()) / kFixed * rayPower;
