@@ -23,6 +23,90 @@ constexpr size_t kBlock = size_t(1) << 14;
 // squared norm adds nothing a float history can resolve: it is left out of the combination.
 constexpr double kDependent = 1e-8;
 
+// The new column @a dF's products with the @a used columns of @a deltaF (a row of the Gram
+// matrix: row and column @a slot of @a gram, m x m) and every column's product with f_k (the
+// right-hand side, into @a rhs), all of @a n values: per block in parallel, then over the blocks
+// in order.
+template<typename T>
+void
+gramRow(const std::vector<T>& deltaF, const T* dF, const std::vector<T>& f, size_t n, size_t m,
+    size_t used, size_t slot, std::vector<double>& gram, std::vector<double>& rhs)
+{
+    const size_t blocks = (n + kBlock - 1) / kBlock;
+    std::vector<double> partial(blocks * 2 * m, 0.0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks),
+        [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t b = r.begin(); b != r.end(); ++b) {
+            const size_t lo = b * kBlock, hi = std::min(n, lo + kBlock);
+            double* row = &partial[b * 2 * m];
+            double* blockRhs = row + m;
+            for (size_t j = 0; j < used; ++j) {
+                const T* c = &deltaF[j * n];
+                double sRow = 0.0, sRhs = 0.0;
+                for (size_t i = lo; i < hi; ++i) {
+                    sRow += double(dF[i]) * double(c[i]);
+                    sRhs += double(c[i]) * double(f[i]);
+                }
+                row[j] = sRow;
+                blockRhs[j] = sRhs;
+            }
+        }
+    });
+    for (size_t j = 0; j < used; ++j) {
+        double sRow = 0.0, sRhs = 0.0;
+        for (size_t b = 0; b < blocks; ++b) {
+            sRow += partial[b * 2 * m + j];
+            sRhs += partial[b * 2 * m + m + j];
+        }
+        gram[slot * m + j] = gram[j * m + slot] = sRow;
+        rhs[j] = sRhs;
+    }
+}
+
+// Least squares min |f_k - dF gamma| by the normal equations (@a gram, m x m, and @a rhs),
+// columns newest first from ring slot @a slot back over the @a used ones; a column (nearly) in
+// the span of newer ones is skipped. Returns the ring slots of the columns kept, with their
+// coefficients in @a gamma; none if no column is kept.
+std::vector<size_t>
+leastSquares(const std::vector<double>& gram, const std::vector<double>& rhs, size_t m,
+    size_t slot, size_t used, std::vector<double>& gamma)
+{
+    std::vector<size_t> order;           // ring slots, newest first
+    for (size_t t = 0; t < used; ++t) order.push_back((slot + m - t) % m);
+    std::vector<size_t> kept;
+    std::vector<double> L(m * m, 0.0);   // L[a * m + b]: Cholesky factor, rows of kept columns
+    for (size_t c : order) {
+        const double diag = gram[c * m + c];
+        if (!(diag > 0.0)) continue;
+        const size_t a = kept.size();
+        double pivot = diag;
+        for (size_t k = 0; k < a; ++k) {
+            double v = gram[c * m + kept[k]];
+            for (size_t p = 0; p < k; ++p) v -= L[a * m + p] * L[k * m + p];
+            L[a * m + k] = v / L[k * m + k];
+            pivot -= L[a * m + k] * L[a * m + k];
+        }
+        if (!(pivot > kDependent * diag)) continue;
+        L[a * m + a] = std::sqrt(pivot);
+        kept.push_back(c);
+    }
+    if (kept.empty()) return kept;
+    const size_t K = kept.size();
+    std::vector<double> y(K);
+    gamma.assign(K, 0.0);
+    for (size_t a = 0; a < K; ++a) {
+        double v = rhs[kept[a]];
+        for (size_t p = 0; p < a; ++p) v -= L[a * m + p] * y[p];
+        y[a] = v / L[a * m + a];
+    }
+    for (size_t a = K; a-- > 0;) {
+        double v = y[a];
+        for (size_t p = a + 1; p < K; ++p) v -= L[p * m + a] * gamma[p];
+        gamma[a] = v / L[a * m + a];
+    }
+    return kept;
+}
+
 } // namespace
 
 Acceleration
@@ -110,7 +194,7 @@ template<typename T>
 void
 AndersonMixerT<T>::mix(const T* x, T* gx)
 {
-    const size_t n = mSize, blocks = (n + kBlock - 1) / kBlock;
+    const size_t n = mSize;
     const size_t m = size_t(mDepth);
     mCombined = 0;
 
@@ -151,73 +235,17 @@ AndersonMixerT<T>::mix(const T* x, T* gx)
         }
     });
 
-    // Per block: the new column's products with every column (a row of the Gram matrix), and
-    // every column's product with f_k (the right-hand side).
+    // The new column's products with every column (a row of the Gram matrix), and every
+    // column's product with f_k (the right-hand side).
     const size_t used = size_t(mUsed);
-    std::vector<double> partial(blocks * 2 * m, 0.0);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks),
-        [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t b = r.begin(); b != r.end(); ++b) {
-            const size_t lo = b * kBlock, hi = std::min(n, lo + kBlock);
-            double* row = &partial[b * 2 * m];
-            double* rhs = row + m;
-            for (size_t j = 0; j < used; ++j) {
-                const T* c = &mDeltaF[j * n];
-                double sRow = 0.0, sRhs = 0.0;
-                for (size_t i = lo; i < hi; ++i) {
-                    sRow += double(dF[i]) * double(c[i]);
-                    sRhs += double(c[i]) * double(mPreviousF[i]);
-                }
-                row[j] = sRow;
-                rhs[j] = sRhs;
-            }
-        }
-    });
     std::vector<double> rhs(m, 0.0);
-    for (size_t j = 0; j < used; ++j) {
-        double sRow = 0.0, sRhs = 0.0;
-        for (size_t b = 0; b < blocks; ++b) {
-            sRow += partial[b * 2 * m + j];
-            sRhs += partial[b * 2 * m + m + j];
-        }
-        mGram[slot * m + j] = mGram[j * m + slot] = sRow;
-        rhs[j] = sRhs;
-    }
+    gramRow(mDeltaF, dF, mPreviousF, n, m, used, slot, mGram, rhs);
 
-    // Least squares min |f_k - dF gamma| by the normal equations, columns newest first; a column
-    // (nearly) in the span of newer ones is skipped.
-    std::vector<size_t> order;           // ring slots, newest first
-    for (size_t t = 0; t < used; ++t) order.push_back((slot + m - t) % m);
-    std::vector<size_t> kept;
-    std::vector<double> L(m * m, 0.0);   // L[a * m + b]: Cholesky factor, rows of kept columns
-    for (size_t c : order) {
-        const double diag = mGram[c * m + c];
-        if (!(diag > 0.0)) continue;
-        const size_t a = kept.size();
-        double pivot = diag;
-        for (size_t k = 0; k < a; ++k) {
-            double v = mGram[c * m + kept[k]];
-            for (size_t p = 0; p < k; ++p) v -= L[a * m + p] * L[k * m + p];
-            L[a * m + k] = v / L[k * m + k];
-            pivot -= L[a * m + k] * L[a * m + k];
-        }
-        if (!(pivot > kDependent * diag)) continue;
-        L[a * m + a] = std::sqrt(pivot);
-        kept.push_back(c);
-    }
+    // The combination gamma of the kept columns that minimises |f_k - dF gamma|.
+    std::vector<double> gamma;
+    const std::vector<size_t> kept = leastSquares(mGram, rhs, m, slot, used, gamma);
     if (kept.empty()) return;
     const size_t K = kept.size();
-    std::vector<double> y(K), gamma(K);
-    for (size_t a = 0; a < K; ++a) {
-        double v = rhs[kept[a]];
-        for (size_t p = 0; p < a; ++p) v -= L[a * m + p] * y[p];
-        y[a] = v / L[a * m + a];
-    }
-    for (size_t a = K; a-- > 0;) {
-        double v = y[a];
-        for (size_t p = a + 1; p < K; ++p) v -= L[p * m + a] * gamma[p];
-        gamma[a] = v / L[a * m + a];
-    }
     mCombined = int(K);
 
     // x_{k+1} = G(x_k) - dG gamma.
