@@ -222,9 +222,14 @@ voxelizeVoxelSize(const TriangleMesh& mesh, const VoxelizeOptions& options)
     return extent / options.resolution;
 }
 
-openvdb::GridPtrVec
-voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
-    openvdb::util::NullInterrupter* interrupt, std::vector<std::string>* warnings)
+// ---- voxelizeMesh: its steps --------------------------------------------------------------------
+
+namespace {
+
+// Options and mesh are checked before anything is computed from them (the first error found,
+// in this order, is the one reported).
+void
+checkVoxelizeInput(const TriangleMesh& mesh, const VoxelizeOptions& options)
 {
     if (options.separation != 6 && options.separation != 26) {
         OPENVDB_THROW(openvdb::ValueError, "separation must be 6 or 26, got "
@@ -259,12 +264,13 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
             }
         }
     }
-    const double voxelSize = voxelizeVoxelSize(mesh, options);
-    const double inv = 1.0 / voxelSize;
+}
 
-    // Index-space corners, and the guards that must pass before anything is allocated: int32
-    // coordinates, and a voxel-count estimate (area in voxels times the plane thickness ||n||_1
-    // for 26, ||n||_inf for 6, plus the rims).
+// The mesh's points in index space, refused where a coordinate leaves int32 range.
+std::vector<Vec3d>
+indexPoints(const TriangleMesh& mesh, double voxelSize)
+{
+    const double inv = 1.0 / voxelSize;
     std::vector<Vec3d> points(mesh.points.size());
     const double limit = double(1 << 30) - 16.0;
     for (size_t i = 0; i < points.size(); ++i) {
@@ -278,6 +284,15 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
             }
         }
     }
+    return points;
+}
+
+// Refuses a mesh without area, or one whose estimated surface-voxel count (area in voxels times
+// the plane thickness, plus the rims) is above options.maxVoxels.
+void
+checkVoxelEstimate(const TriangleMesh& mesh, const std::vector<Vec3d>& points,
+    const VoxelizeOptions& options, double voxelSize)
+{
     double estimate = 0.0, area = 0.0;
     for (const openvdb::Vec3I& t : mesh.triangles) {
         const Vec3d& a = points[t[0]];
@@ -300,129 +315,168 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
            << " or more would fit";
         OPENVDB_THROW(openvdb::ValueError, os.str());
     }
+}
 
-    if (interrupt) interrupt->start("voxelizing the mesh");
-    const bool thick = options.separation == 26;
+// Whether triangle @a t has a material that emits.
+bool
+isEmitting(const TriangleMesh& mesh, size_t t)
+{
+    if (!mesh.hasMaterials()) return false;
+    const int32_t m = mesh.triangleMaterials[t];
+    return m >= 0 && size_t(m) < mesh.materials.size()
+        && mesh.materials[size_t(m)].emission != Vec3f(0.f);
+}
+
+// The voxels that triangle @a t (a, b, c in index space) puts in the shell, each with its
+// distance to the voxel centre, and for a light (@a emits) its area inside each voxel.
+void
+rasteriseTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c, size_t t, bool thick,
+    bool emits, std::vector<Hit>& hits, std::vector<EmitHit>& emitHits)
+{
+    const Vec3d n = (b - a).cross(c - a);
+    if (!(n.lengthSqr() > 0.0)) return;   // degenerate: covers nothing
+    // Walk the voxel columns along the dominant normal axis w: in each, only the
+    // voxels within the plane's thickness can meet the triangle.
+    const int w = int(std::abs(n[0]) >= std::abs(n[1])
+        ? (std::abs(n[0]) >= std::abs(n[2]) ? 0 : 2)
+        : (std::abs(n[1]) >= std::abs(n[2]) ? 1 : 2));
+    const int u = (w + 1) % 3, v = (w + 2) % 3;
+    const double halfThickness = 0.5 * planeThickness(n, thick || emits);
+    Coord lo, hi;
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = int(std::ceil(std::min({a[k], b[k], c[k]}) - 0.5 - kTouch));
+        hi[k] = int(std::floor(std::max({a[k], b[k], c[k]}) + 0.5 + kTouch));
+    }
+    const double d = n.dot(a);
+    Vec3d centre;
+    for (int iu = lo[u]; iu <= hi[u]; ++iu) {
+        for (int iv = lo[v]; iv <= hi[v]; ++iv) {
+            const double rest = d - n[u] * iu - n[v] * iv;
+            double w0 = (rest - halfThickness) / n[w], w1 = (rest + halfThickness) / n[w];
+            if (w0 > w1) std::swap(w0, w1);
+            const int k0 = std::max(lo[w], int(std::ceil(w0 - kTouch)));
+            const int k1 = std::min(hi[w], int(std::floor(w1 + kTouch)));
+            for (int iw = k0; iw <= k1; ++iw) {
+                centre[u] = iu;
+                centre[v] = iv;
+                centre[w] = iw;
+                // Lights take every voxel their cube meets, whatever the shell:
+                // all their area then lies in voxels (the star shell's voxels are
+                // a subset, so it stays 6-separating).
+                const bool meets = thick || emits
+                    ? triangleMeetsVoxel(centre, a, b, c)
+                    : triangleMeetsVoxelStar(centre, a, b, c);
+                if (!meets) continue;
+                const Coord ijk{int(centre[0]), int(centre[1]), int(centre[2])};
+                hits.push_back({ijk,
+                    float(squaredDistanceToTriangle(centre, a, b, c)), uint32_t(t)});
+                if (emits) {
+                    const double inside = areaInVoxel(centre, a, b, c);
+                    if (inside > 0.0) {
+                        emitHits.push_back({ijk, float(inside), uint32_t(t)});
+                    }
+                }
+            }
+        }
+    }
+}
+
+// Rasterises every triangle, in parallel, into @a hits and @a emitHits (unsorted; one hit per
+// triangle and voxel).
+void
+rasteriseMesh(const TriangleMesh& mesh, const std::vector<Vec3d>& points, bool thick,
+    openvdb::util::NullInterrupter* interrupt, std::vector<Hit>& hits,
+    std::vector<EmitHit>& emitHits)
+{
     tbb::enumerable_thread_specific<std::vector<Hit>> hitsPerThread;
     tbb::enumerable_thread_specific<std::vector<EmitHit>> emitPerThread;
-    auto emitting = [&](size_t t) {
-        if (!mesh.hasMaterials()) return false;
-        const int32_t m = mesh.triangleMaterials[t];
-        return m >= 0 && size_t(m) < mesh.materials.size()
-            && mesh.materials[size_t(m)].emission != Vec3f(0.f);
-    };
     tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangles.size(), 64),
         [&](const tbb::blocked_range<size_t>& range) {
             if (openvdb::util::wasInterrupted(interrupt)) return;
-            std::vector<Hit>& hits = hitsPerThread.local();
-            std::vector<EmitHit>& emitHits = emitPerThread.local();
+            std::vector<Hit>& localHits = hitsPerThread.local();
+            std::vector<EmitHit>& localEmitHits = emitPerThread.local();
             for (size_t t = range.begin(); t != range.end(); ++t) {
-                const bool emits = emitting(t);
                 const Vec3d& a = points[mesh.triangles[t][0]];
                 const Vec3d& b = points[mesh.triangles[t][1]];
                 const Vec3d& c = points[mesh.triangles[t][2]];
-                const Vec3d n = (b - a).cross(c - a);
-                if (!(n.lengthSqr() > 0.0)) continue;   // degenerate: covers nothing
-                // Walk the voxel columns along the dominant normal axis w: in each, only the
-                // voxels within the plane's thickness can meet the triangle.
-                const int w = int(std::abs(n[0]) >= std::abs(n[1])
-                    ? (std::abs(n[0]) >= std::abs(n[2]) ? 0 : 2)
-                    : (std::abs(n[1]) >= std::abs(n[2]) ? 1 : 2));
-                const int u = (w + 1) % 3, v = (w + 2) % 3;
-                const double halfThickness = 0.5 * planeThickness(n, thick || emits);
-                Coord lo, hi;
-                for (int k = 0; k < 3; ++k) {
-                    lo[k] = int(std::ceil(std::min({a[k], b[k], c[k]}) - 0.5 - kTouch));
-                    hi[k] = int(std::floor(std::max({a[k], b[k], c[k]}) + 0.5 + kTouch));
-                }
-                const double d = n.dot(a);
-                Vec3d centre;
-                for (int iu = lo[u]; iu <= hi[u]; ++iu) {
-                    for (int iv = lo[v]; iv <= hi[v]; ++iv) {
-                        const double rest = d - n[u] * iu - n[v] * iv;
-                        double w0 = (rest - halfThickness) / n[w], w1 = (rest + halfThickness) / n[w];
-                        if (w0 > w1) std::swap(w0, w1);
-                        const int k0 = std::max(lo[w], int(std::ceil(w0 - kTouch)));
-                        const int k1 = std::min(hi[w], int(std::floor(w1 + kTouch)));
-                        for (int iw = k0; iw <= k1; ++iw) {
-                            centre[u] = iu;
-                            centre[v] = iv;
-                            centre[w] = iw;
-                            // Lights take every voxel their cube meets, whatever the shell:
-                            // all their area then lies in voxels (the star shell's voxels are
-                            // a subset, so it stays 6-separating).
-                            const bool meets = thick || emits
-                                ? triangleMeetsVoxel(centre, a, b, c)
-                                : triangleMeetsVoxelStar(centre, a, b, c);
-                            if (!meets) continue;
-                            const Coord ijk{int(centre[0]), int(centre[1]), int(centre[2])};
-                            hits.push_back({ijk,
-                                float(squaredDistanceToTriangle(centre, a, b, c)), uint32_t(t)});
-                            if (emits) {
-                                const double inside = areaInVoxel(centre, a, b, c);
-                                if (inside > 0.0) {
-                                    emitHits.push_back({ijk, float(inside), uint32_t(t)});
-                                }
-                            }
-                        }
-                    }
-                }
+                rasteriseTriangle(a, b, c, t, thick, isEmitting(mesh, t), localHits,
+                    localEmitHits);
             }
         });
     if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled();
 
-    // The closest triangle of each voxel: sort all hits by voxel, then distance.
-    std::vector<Hit> hits;
-    {
-        size_t total = 0;
-        for (const auto& h : hitsPerThread) total += h.size();
-        hits.reserve(total);
-        for (auto& h : hitsPerThread) {
-            hits.insert(hits.end(), h.begin(), h.end());
-            std::vector<Hit>().swap(h);
-        }
+    size_t total = 0;
+    for (const auto& h : hitsPerThread) total += h.size();
+    hits.reserve(total);
+    for (auto& h : hitsPerThread) {
+        hits.insert(hits.end(), h.begin(), h.end());
+        std::vector<Hit>().swap(h);
     }
+    for (auto& h : emitPerThread) emitHits.insert(emitHits.end(), h.begin(), h.end());
+}
+
+// The closest triangle of each voxel: sort all hits by voxel, then distance, and keep the first.
+void
+keepClosestHits(std::vector<Hit>& hits)
+{
     tbb::parallel_sort(hits.begin(), hits.end());
     hits.erase(std::unique(hits.begin(), hits.end(),
                    [](const Hit& x, const Hit& y) { return x.ijk == y.ijk; }),
         hits.end());
-    if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled();
+}
 
-    // Unit world-space normals per triangle; the transform is a uniform scale, so the index-space
-    // cross product has the world direction.
+// Unit world-space normals per triangle; the transform is a uniform scale, so the index-space
+// cross product has the world direction.
+std::vector<Vec3f>
+triangleNormals(const TriangleMesh& mesh, const std::vector<Vec3d>& points)
+{
     std::vector<Vec3f> normals(mesh.triangles.size());
     for (size_t t = 0; t < normals.size(); ++t) {
         const Vec3d& a = points[mesh.triangles[t][0]];
         const Vec3d n = (points[mesh.triangles[t][1]] - a).cross(points[mesh.triangles[t][2]] - a);
         normals[t] = Vec3f(n.unitSafe());
     }
-    const bool hasMaterials = mesh.hasMaterials();
-    auto material = [&](uint32_t t) -> const Material* {
-        if (!hasMaterials) return nullptr;
-        const int32_t m = mesh.triangleMaterials[t];
-        return m >= 0 && size_t(m) < mesh.materials.size() ? &mesh.materials[size_t(m)] : nullptr;
-    };
+    return normals;
+}
 
-    // Emission takes precedence within a voxel: each voxel holding emitting area emits the mean
-    // emission of that area (so its power, emission times emission_area, is the mesh's however
-    // many lights share it) and takes normal and material from the emitter holding most of it,
-    // never from a wall closer to its centre: a light 1 cm under a ceiling stays a light at any
-    // resolution, and the voxelised lights' power is the mesh's.
-    std::vector<EmitHit> emitHits;
-    for (auto& h : emitPerThread) emitHits.insert(emitHits.end(), h.begin(), h.end());
-    std::sort(emitHits.begin(), emitHits.end());
-    struct EmitVoxel
+// The material of a triangle; null where the mesh has none or its index names none.
+class MaterialLookup
+{
+public:
+    explicit MaterialLookup(const TriangleMesh& mesh)
+        : mMesh(mesh), mHasMaterials(mesh.hasMaterials()) {}
+
+    bool hasMaterials() const { return mHasMaterials; }
+
+    const Material* operator()(uint32_t t) const
     {
-        Coord ijk;
-        uint32_t triangle;   // the largest emitter
-        double area;         // voxel faces, all emitters
-        Vec3d power;         // emission times area, all emitters
-        bool mixed;          // emitters of different emission
-    };
+        if (!mHasMaterials) return nullptr;
+        const int32_t m = mMesh.triangleMaterials[t];
+        return m >= 0 && size_t(m) < mMesh.materials.size() ? &mMesh.materials[size_t(m)] : nullptr;
+    }
+
+private:
+    const TriangleMesh& mMesh;
+    bool mHasMaterials;
+};
+
+struct EmitVoxel
+{
+    Coord ijk;
+    uint32_t triangle;   // the largest emitter
+    double area;         // voxel faces, all emitters
+    Vec3d power;         // emission times area, all emitters
+    bool mixed;          // emitters of different emission
+};
+
+// The emitting voxels, from @a emitHits sorted by voxel then area. @a kept gets, per triangle:
+// 1 if it holds emitting area somewhere, 2 if a voxel it is in also faces its way (the voxel's
+// emitter's normal within 90 degrees of its own).
+std::vector<EmitVoxel>
+emittingVoxels(const std::vector<EmitHit>& emitHits, const MaterialLookup& material,
+    const std::vector<Vec3f>& normals, std::vector<uint8_t>& kept)
+{
     std::vector<EmitVoxel> emitters;
-    // Per triangle: 1 if it holds emitting area somewhere, 2 if a voxel it is in also faces its
-    // way (the voxel's emitter's normal within 90 degrees of its own).
-    std::vector<uint8_t> kept(mesh.triangles.size(), 0);
     for (size_t i = 0; i < emitHits.size();) {
         const EmitHit& largest = emitHits[i];
         const Vec3f& emission = material(largest.triangle)->emission;
@@ -438,9 +492,19 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
         }
         emitters.push_back(v);
     }
-    auto emissionOf = [&](const EmitVoxel& v) {
-        return v.mixed ? Vec3f(v.power / v.area) : material(v.triangle)->emission;
-    };
+    return emitters;
+}
+
+Vec3f
+emissionOf(const EmitVoxel& v, const MaterialLookup& material)
+{
+    return v.mixed ? Vec3f(v.power / v.area) : material(v.triangle)->emission;
+}
+
+// Each emitting voxel takes its normal and material from its largest emitter.
+void
+giveVoxelsToLights(const std::vector<EmitVoxel>& emitters, std::vector<Hit>& hits)
+{
     for (size_t i = 0, k = 0; i < emitters.size(); ++i) {
         // Both sorted by voxel; every emitting voxel is a surface voxel.
         while (k < hits.size() && hits[k].ijk < emitters[i].ijk) ++k;
@@ -448,37 +512,125 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
             hits[k].triangle = emitters[i].triangle;
         }
     }
+}
 
-    // A light must not vanish unnoticed: name the emitting triangles that keep no voxel.
-    if (warnings) {
-        auto describe = [&](size_t t) {
-            std::ostringstream os;
-            os << "triangle " << t + 1 << " (material '" << material(uint32_t(t))->name << "'";
-            if (mesh.hasGroups()) {
-                os << ", object '" << mesh.groups[size_t(mesh.triangleGroups[t])] << "'";
-            }
-            return os.str() + ")";
-        };
-        size_t lost[2] = {0, 0}, firstLost[2] = {0, 0};
-        for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-            if (!emitting(t) || kept[t] == 2) continue;
-            if (lost[kept[t]]++ == 0) firstLost[kept[t]] = t;
+// A light must not vanish unnoticed: name the emitting triangles that keep no voxel.
+void
+warnLostLights(const TriangleMesh& mesh, const std::vector<uint8_t>& kept,
+    const MaterialLookup& material, std::vector<std::string>& warnings)
+{
+    auto describe = [&](size_t t) {
+        std::ostringstream os;
+        os << "triangle " << t + 1 << " (material '" << material(uint32_t(t))->name << "'";
+        if (mesh.hasGroups()) {
+            os << ", object '" << mesh.groups[size_t(mesh.triangleGroups[t])] << "'";
         }
-        auto more = [](size_t n) {
-            return n > 1 ? " (and " + std::to_string(n - 1) + " more emitting triangles)"
-                         : std::string();
-        };
-        if (lost[0]) {
-            warnings->push_back("emitting " + describe(firstLost[0])
-                + " has no area: it adds no light" + more(lost[0]));
-        }
-        if (lost[1]) {
-            warnings->push_back("emitting " + describe(firstLost[1]) + " keeps no voxel of its "
-                "own: each voxel it lies in is held by a light facing another way (a two-sided "
-                "light?), and its light leaves that way" + more(lost[1]));
-        }
+        return os.str() + ")";
+    };
+    size_t lost[2] = {0, 0}, firstLost[2] = {0, 0};
+    for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+        if (!isEmitting(mesh, t) || kept[t] == 2) continue;
+        if (lost[kept[t]]++ == 0) firstLost[kept[t]] = t;
     }
+    auto more = [](size_t n) {
+        return n > 1 ? " (and " + std::to_string(n - 1) + " more emitting triangles)"
+                     : std::string();
+    };
+    if (lost[0]) {
+        warnings.push_back("emitting " + describe(firstLost[0])
+            + " has no area: it adds no light" + more(lost[0]));
+    }
+    if (lost[1]) {
+        warnings.push_back("emitting " + describe(firstLost[1]) + " keeps no voxel of its "
+            "own: each voxel it lies in is held by a light facing another way (a two-sided "
+            "light?), and its light leaves that way" + more(lost[1]));
+    }
+}
 
+// An attribute grid on the normal grid's topology: value(triangle) at each surface voxel, vec3s
+// if @a rgb, else float (the first channel).
+template<typename ValueOf>
+openvdb::GridBase::Ptr
+colourGrid(const std::vector<Hit>& hits, const char* name, bool rgb, bool onlyNonZero,
+    const ValueOf& value, const openvdb::math::Transform::Ptr& xform)
+{
+    openvdb::GridBase::Ptr out;
+    if (rgb) {
+        openvdb::Vec3SGrid::Ptr g = openvdb::Vec3SGrid::create(Vec3f(0.f));
+        auto acc = g->getAccessor();
+        for (const Hit& h : hits) {
+            const Vec3f c = value(h.triangle);
+            if (!onlyNonZero || c != Vec3f(0.f)) acc.setValue(h.ijk, c);
+        }
+        out = g;
+    } else {
+        openvdb::FloatGrid::Ptr g = openvdb::FloatGrid::create(0.f);
+        auto acc = g->getAccessor();
+        for (const Hit& h : hits) {
+            const float c = value(h.triangle)[0];
+            if (!onlyNonZero || c != 0.f) acc.setValue(h.ijk, c);
+        }
+        out = g;
+    }
+    out->setName(name);
+    out->setTransform(xform);
+    return out;
+}
+
+// `emission` and `emission_area`, only where emitting mesh lies (a voxel whose cube merely
+// touches a light emits nothing).
+void
+addEmissionGrids(const std::vector<EmitVoxel>& emitters, bool rgbEmission,
+    const MaterialLookup& material, const openvdb::math::Transform::Ptr& xform, double voxelSize,
+    openvdb::GridPtrVec& grids)
+{
+    auto put = [&](auto grid, auto convert) {
+        auto acc = grid->getAccessor();
+        for (const EmitVoxel& e : emitters) acc.setValue(e.ijk, convert(emissionOf(e, material)));
+        grid->setName(names::kEmission);
+        grid->setTransform(xform);
+        grids.push_back(grid);
+    };
+    if (rgbEmission) {
+        put(openvdb::Vec3SGrid::create(Vec3f(0.f)), [](const Vec3f& c) { return c; });
+    } else {
+        put(openvdb::FloatGrid::create(0.f), [](const Vec3f& c) { return c[0]; });
+    }
+    openvdb::FloatGrid::Ptr area = openvdb::FloatGrid::create(0.f);
+    auto acc = area->getAccessor();
+    const double face = voxelSize * voxelSize;
+    for (const EmitVoxel& e : emitters) acc.setValue(e.ijk, float(e.area * face));
+    area->setName(names::kEmissionArea);
+    area->setTransform(xform);
+    grids.push_back(area);
+}
+
+// The OBJ object or group of each voxel's triangle; names in metadata, so that a file maps its
+// ids back without the mesh.
+openvdb::Int32Grid::Ptr
+materialIdGrid(const TriangleMesh& mesh, const std::vector<Hit>& hits,
+    const openvdb::math::Transform::Ptr& xform)
+{
+    openvdb::Int32Grid::Ptr ids = openvdb::Int32Grid::create(-1);
+    auto acc = ids->getAccessor();
+    for (const Hit& h : hits) acc.setValue(h.ijk, mesh.triangleGroups[h.triangle]);
+    ids->setName(names::kMaterialId);
+    ids->setTransform(xform);
+    for (size_t i = 0; i < mesh.groups.size(); ++i) {
+        ids->insertMeta(kMaterialNameMeta + std::to_string(i),
+            openvdb::StringMetadata(mesh.groups[i]));
+    }
+    return ids;
+}
+
+// The scene's grids from the surface voxels (@a hits, each with its triangle) and the emitting
+// voxels.
+openvdb::GridPtrVec
+surfaceGrids(const TriangleMesh& mesh, const VoxelizeOptions& options, double voxelSize,
+    const std::vector<Hit>& hits, const std::vector<EmitVoxel>& emitters,
+    const std::vector<Vec3f>& normals, const MaterialLookup& material,
+    openvdb::util::NullInterrupter* interrupt)
+{
     // Materials actually used decide the grid types: RGB only where some colour is not grey.
     bool rgbAlbedo = false, rgbEmission = false, rgbSpecular = false;
     for (const Hit& h : hits) {
@@ -487,7 +639,9 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
             rgbSpecular = rgbSpecular || !isGrey(m->specular);
         }
     }
-    for (const EmitVoxel& e : emitters) rgbEmission = rgbEmission || !isGrey(emissionOf(e));
+    for (const EmitVoxel& e : emitters) {
+        rgbEmission = rgbEmission || !isGrey(emissionOf(e, material));
+    }
 
     openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(voxelSize);
     openvdb::Vec3SGrid::Ptr normalGrid = openvdb::Vec3SGrid::create(Vec3f(0.f));
@@ -502,87 +656,32 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
 
     // Attribute grids share the normal grid's topology (emission: only the emitting voxels, as
     // an attribute grid's inactive background is its value elsewhere).
-    auto colourGrid = [&](const char* name, bool rgb, bool onlyNonZero, auto value) {
-        openvdb::GridBase::Ptr out;
-        if (rgb) {
-            openvdb::Vec3SGrid::Ptr g = openvdb::Vec3SGrid::create(Vec3f(0.f));
-            auto acc = g->getAccessor();
-            for (const Hit& h : hits) {
-                const Vec3f c = value(h.triangle);
-                if (!onlyNonZero || c != Vec3f(0.f)) acc.setValue(h.ijk, c);
-            }
-            out = g;
-        } else {
-            openvdb::FloatGrid::Ptr g = openvdb::FloatGrid::create(0.f);
-            auto acc = g->getAccessor();
-            for (const Hit& h : hits) {
-                const float c = value(h.triangle)[0];
-                if (!onlyNonZero || c != 0.f) acc.setValue(h.ijk, c);
-            }
-            out = g;
-        }
-        out->setName(name);
-        out->setTransform(xform);
-        grids.push_back(out);
-    };
     // Glossy materials reflecting more than all (Kd + Ks > 1) are scaled to 1.
+    const bool hasMaterials = material.hasMaterials();
     const bool glossy = hasMaterials && options.specular && mesh.hasSpecular();
     auto conserved = [&](const Material& m) {
         return glossy ? 1.f / std::max(1.f, m.reflectance()) : 1.f;
     };
     if (hasMaterials) {
-        colourGrid(names::kAlbedo, rgbAlbedo, false, [&](uint32_t t) {
+        grids.push_back(colourGrid(hits, names::kAlbedo, rgbAlbedo, false, [&](uint32_t t) {
             const Material* m = material(t);
             return m ? m->albedo * conserved(*m) : Vec3f(options.defaultAlbedo);
-        });
+        }, xform));
     }
     if (glossy) {
-        colourGrid(names::kSpecular, rgbSpecular, false, [&](uint32_t t) {
+        grids.push_back(colourGrid(hits, names::kSpecular, rgbSpecular, false, [&](uint32_t t) {
             const Material* m = material(t);
             return m ? m->specular * conserved(*m) : Vec3f(0.f);
-        });
-        colourGrid(names::kRoughness, false, false, [&](uint32_t t) {
+        }, xform));
+        grids.push_back(colourGrid(hits, names::kRoughness, false, false, [&](uint32_t t) {
             const Material* m = material(t);
             return Vec3f(m ? m->roughness : 0.5f);
-        });
+        }, xform));
     }
     if (!emitters.empty()) {
-        // Only where emitting mesh lies (a voxel whose cube merely touches a light emits
-        // nothing).
-        auto put = [&](auto grid, auto convert) {
-            auto acc = grid->getAccessor();
-            for (const EmitVoxel& e : emitters) acc.setValue(e.ijk, convert(emissionOf(e)));
-            grid->setName(names::kEmission);
-            grid->setTransform(xform);
-            grids.push_back(grid);
-        };
-        if (rgbEmission) {
-            put(openvdb::Vec3SGrid::create(Vec3f(0.f)), [](const Vec3f& c) { return c; });
-        } else {
-            put(openvdb::FloatGrid::create(0.f), [](const Vec3f& c) { return c[0]; });
-        }
-        openvdb::FloatGrid::Ptr area = openvdb::FloatGrid::create(0.f);
-        auto acc = area->getAccessor();
-        const double face = voxelSize * voxelSize;
-        for (const EmitVoxel& e : emitters) acc.setValue(e.ijk, float(e.area * face));
-        area->setName(names::kEmissionArea);
-        area->setTransform(xform);
-        grids.push_back(area);
+        addEmissionGrids(emitters, rgbEmission, material, xform, voxelSize, grids);
     }
-    if (mesh.hasGroups()) {
-        // The OBJ object or group of each voxel's triangle; names in metadata, so that a file
-        // maps its ids back without the mesh.
-        openvdb::Int32Grid::Ptr ids = openvdb::Int32Grid::create(-1);
-        auto acc = ids->getAccessor();
-        for (const Hit& h : hits) acc.setValue(h.ijk, mesh.triangleGroups[h.triangle]);
-        ids->setName(names::kMaterialId);
-        ids->setTransform(xform);
-        for (size_t i = 0; i < mesh.groups.size(); ++i) {
-            ids->insertMeta(kMaterialNameMeta + std::to_string(i),
-                openvdb::StringMetadata(mesh.groups[i]));
-        }
-        grids.push_back(ids);
-    }
+    if (mesh.hasGroups()) grids.push_back(materialIdGrid(mesh, hits, xform));
     if (options.keepSdf) {
         if (interrupt) interrupt->start("level set");
         std::vector<Vec3f> worldPoints(mesh.points.begin(), mesh.points.end());
@@ -592,6 +691,47 @@ voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
         grids.push_back(sdf);
         if (interrupt) interrupt->end();
     }
+    return grids;
+}
+
+} // namespace
+
+openvdb::GridPtrVec
+voxelizeMesh(const TriangleMesh& mesh, const VoxelizeOptions& options,
+    openvdb::util::NullInterrupter* interrupt, std::vector<std::string>* warnings)
+{
+    checkVoxelizeInput(mesh, options);
+    const double voxelSize = voxelizeVoxelSize(mesh, options);
+
+    // Index-space corners, and the guards that must pass before anything is allocated: int32
+    // coordinates, and a voxel-count estimate (area in voxels times the plane thickness ||n||_1
+    // for 26, ||n||_inf for 6, plus the rims).
+    const std::vector<Vec3d> points = indexPoints(mesh, voxelSize);
+    checkVoxelEstimate(mesh, points, options, voxelSize);
+
+    if (interrupt) interrupt->start("voxelizing the mesh");
+    std::vector<Hit> hits;
+    std::vector<EmitHit> emitHits;
+    rasteriseMesh(mesh, points, options.separation == 26, interrupt, hits, emitHits);
+    keepClosestHits(hits);
+    if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled();
+
+    const std::vector<Vec3f> normals = triangleNormals(mesh, points);
+    const MaterialLookup material(mesh);
+
+    // Emission takes precedence within a voxel: each voxel holding emitting area emits the mean
+    // emission of that area (so its power, emission times emission_area, is the mesh's however
+    // many lights share it) and takes normal and material from the emitter holding most of it,
+    // never from a wall closer to its centre: a light 1 cm under a ceiling stays a light at any
+    // resolution, and the voxelised lights' power is the mesh's.
+    std::sort(emitHits.begin(), emitHits.end());
+    std::vector<uint8_t> kept(mesh.triangles.size(), 0);
+    const std::vector<EmitVoxel> emitters = emittingVoxels(emitHits, material, normals, kept);
+    giveVoxelsToLights(emitters, hits);
+    if (warnings) warnLostLights(mesh, kept, material, *warnings);
+
+    openvdb::GridPtrVec grids =
+        surfaceGrids(mesh, options, voxelSize, hits, emitters, normals, material, interrupt);
     if (interrupt) interrupt->end();
     return grids;
 }
