@@ -271,185 +271,248 @@ findLibrary(const std::string& folder, std::string name, bool& byName)
     return byName ? beside : std::string();
 }
 
+/// One OBJ read, statement by statement: the mesh so far, its materials and groups, and the
+/// face indices checked at the end.
+class ObjParser
+{
+public:
+    ObjParser(const std::string& name, const std::string& folder): mName(name), mFolder(folder) {}
+
+    /// `v x y z`
+    void vertex(const std::vector<std::string_view>& tokens, size_t line);
+    /// `f v1 v2 v3 ...`: a fan of triangles.
+    void face(const std::vector<std::string_view>& tokens, size_t line);
+    /// `mtllib file ...`: the material libraries, read at once.
+    void mtllib(const std::string& text, const std::vector<std::string_view>& tokens,
+        size_t line);
+    /// `usemtl name`: the material of the faces that follow.
+    void usemtl(const std::string& text, std::string_view key, size_t line);
+    /// `o name` / `g name`: the group of the faces that follow.
+    void group(const std::string& text, std::string_view key);
+    /// The checks that need the whole file, then the mesh.
+    TriangleMesh finish();
+
+private:
+    const std::string& mName;
+    const std::string& mFolder;
+    TriangleMesh mMesh;
+    MaterialTable mTable;
+    std::unordered_set<std::string> mLibraries;   // mtllib names already handled
+    bool mHaveLibrary = false, mMissingLibrary = false;
+    int32_t mCurrent = -1;
+    // Groups (`o` / `g`): ids in order of each name's first face.
+    std::unordered_map<std::string, int32_t> mGroupIds;
+    std::string mGroupName = "default";
+    int32_t mGroupId = -1;
+    bool mHaveGroups = false;
+    std::vector<PolygonFan> mFans;   // polygons of more than 3 vertices, checked at the end
+    // A positive index may name a vertex defined further down (the spec does not forbid it and
+    // some writers emit faces first), so those are checked at the end, in file order.
+    std::vector<std::pair<size_t, long long>> mForward;
+    std::vector<uint32_t> mPolygon;
+};
+
+void
+ObjParser::vertex(const std::vector<std::string_view>& tokens, size_t line)
+{
+    Vec3f p;
+    for (int i = 0; i < 3; ++i) {
+        double v;
+        if (size_t(i + 1) >= tokens.size() || tokens[i + 1][0] == '#') {
+            OPENVDB_THROW(openvdb::ValueError, at(mName, line)
+                << ": vertex needs 3 coordinates, got " << i);
+        }
+        if (!parseDouble(tokens[i + 1], v)) {
+            OPENVDB_THROW(openvdb::ValueError, at(mName, line)
+                << ": bad vertex coordinate " << quote(tokens[i + 1]));
+        }
+        if (!fitsFloat(v)) {
+            OPENVDB_THROW(openvdb::ValueError, at(mName, line)
+                << ": vertex coordinate " << formatNumber(v)
+                << " is not a finite float");
+        }
+        p[i] = float(v);
+    }
+    if (mMesh.points.size() >= std::numeric_limits<uint32_t>::max()) {
+        OPENVDB_THROW(openvdb::ValueError, at(mName, line) << ": more than 2^32-1 vertices");
+    }
+    mMesh.points.push_back(p);   // a fourth (w) value and vertex colours are ignored
+}
+
+void
+ObjParser::face(const std::vector<std::string_view>& tokens, size_t line)
+{
+    std::vector<uint32_t>& polygon = mPolygon;
+    polygon.clear();
+    const long long count = static_cast<long long>(mMesh.points.size());
+    for (size_t i = 1; i < tokens.size() && tokens[i][0] != '#'; ++i) {
+        // v, v/vt, v//vn, v/vt/vn: only v matters.
+        const std::string_view v = tokens[i].substr(0, tokens[i].find('/'));
+        long long k;
+        if (!parseInt(v, k)) {
+            OPENVDB_THROW(openvdb::ValueError, at(mName, line)
+                << ": bad face vertex " << quote(tokens[i]));
+        }
+        if (k == 0) {
+            OPENVDB_THROW(openvdb::ValueError, at(mName, line)
+                << ": face index 0 (OBJ indices start at 1)");
+        }
+        if (k < 0) {
+            if (-k > count) {
+                OPENVDB_THROW(openvdb::ValueError, at(mName, line) << ": face index " << k
+                    << (count ? " out of range [-" + std::to_string(count) + ", -1]"
+                              : std::string(" but no vertex is defined yet")));
+            }
+            k += count + 1;   // relative: -1 is the last vertex defined so far
+        } else if (k > count) {
+            if (k > static_cast<long long>(std::numeric_limits<uint32_t>::max())) {
+                OPENVDB_THROW(openvdb::ValueError, at(mName, line) << ": face index " << k
+                    << " out of range");
+            }
+            mForward.emplace_back(line, k);
+        }
+        polygon.push_back(uint32_t(k - 1));
+    }
+    if (polygon.size() < 3) {
+        OPENVDB_THROW(openvdb::ValueError, at(mName, line) << ": face with "
+            << polygon.size() << " vertices (at least 3 needed)");
+    }
+    // A fan now (vertices may still be to come); concave polygons are re-triangulated
+    // at the end.
+    if (polygon.size() > 3) {
+        mFans.push_back({mMesh.triangles.size(), uint32_t(polygon.size() - 2)});
+    }
+    if (mGroupId < 0) {
+        mGroupId = mGroupIds.emplace(mGroupName, int32_t(mMesh.groups.size())).first->second;
+        if (size_t(mGroupId) == mMesh.groups.size()) mMesh.groups.push_back(mGroupName);
+    }
+    for (size_t i = 1; i + 1 < polygon.size(); ++i) {
+        mMesh.triangles.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
+        mMesh.triangleMaterials.push_back(mCurrent);
+        mMesh.triangleGroups.push_back(mGroupId);
+    }
+}
+
+void
+ObjParser::mtllib(const std::string& text, const std::vector<std::string_view>& tokens,
+    size_t line)
+{
+    const std::string_view key = tokens[0];
+    if (tokens.size() < 2) {
+        OPENVDB_THROW(openvdb::ValueError, at(mName, line) << ": mtllib without a file");
+    }
+    if (mFolder.empty()) return;
+    // Several names may follow; a single name with spaces in it is taken whole when such
+    // a file exists (Blender writes the file name unquoted).
+    const std::string whole(restOfLine(text, key));
+    std::vector<std::string> names;
+    bool byName = false;
+    if (tokens.size() > 2 && !findLibrary(mFolder, whole, byName).empty()) {
+        names.push_back(whole);
+    } else {
+        for (size_t i = 1; i < tokens.size(); ++i) names.emplace_back(tokens[i]);
+    }
+    for (const std::string& lib : names) {
+        if (!mLibraries.insert(lib).second) continue;   // named again: nothing new
+        const std::string found = findLibrary(mFolder, lib, byName);
+        if (found.empty()) {
+            // As Blender does: the scene still loads, its materials plain.
+            mMesh.warnings.push_back(at(mName, line) + ": material library '" + lib
+                + "' not found: its materials get albedo 0.5 and no emission");
+            mMissingLibrary = true;
+            continue;
+        }
+        if (byName) {
+            mMesh.warnings.push_back(at(mName, line) + ": material library '" + lib
+                + "' not found as written; using '" + found.substr(mFolder.size() + 1)
+                + "' beside the OBJ");
+        }
+        readMtl(found, at(mName, line), mTable);
+    }
+    mHaveLibrary = true;
+}
+
+void
+ObjParser::usemtl(const std::string& text, std::string_view key, size_t line)
+{
+    if (!mHaveLibrary) return;   // no library: the scene's default material
+    const std::string material(restOfLine(text, key));
+    const auto found = mTable.index.find(material);
+    if (found != mTable.index.end()) {
+        mCurrent = found->second;
+    } else if (mMissingLibrary) {
+        // Presumably defined in the library that is missing: a plain material of its
+        // own, so its faces are still told apart (material names, albedo grid).
+        mCurrent = int32_t(mTable.materials.size());
+        mTable.index.emplace(material, mCurrent);
+        Material m;
+        m.name = material;
+        mTable.materials.push_back(m);
+    } else {
+        OPENVDB_THROW(openvdb::ValueError, at(mName, line) << ": unknown material "
+            << quote(material) << " (not in the mtllib files)");
+    }
+}
+
+void
+ObjParser::group(const std::string& text, std::string_view key)
+{
+    // The last `o` or `g` names the faces that follow; a bare `g` is the default group.
+    const std::string_view group = restOfLine(text, key);
+    mGroupName = group.empty() ? "default" : std::string(group);
+    mHaveGroups = true;
+    mGroupId = -1;   // found or made at the next face
+}
+
+TriangleMesh
+ObjParser::finish()
+{
+    for (const auto& [faceLine, k] : mForward) {
+        if (k > static_cast<long long>(mMesh.points.size())) {
+            OPENVDB_THROW(openvdb::ValueError, at(mName, faceLine) << ": face index " << k
+                << " out of range [1, " << mMesh.points.size() << "]");
+        }
+    }
+    if (mMesh.triangles.empty()) OPENVDB_THROW(openvdb::ValueError, mName << ": no triangles");
+    triangulatePolygons(mMesh.points, mMesh.triangles, mFans);
+    mMesh.materials = std::move(mTable.materials);
+    if (mMesh.materials.empty()) mMesh.triangleMaterials.clear();
+    if (!mHaveGroups) {
+        mMesh.triangleGroups.clear();
+        mMesh.groups.clear();
+    }
+    return std::move(mMesh);
+}
+
 } // namespace
 
 
 TriangleMesh
 readObj(std::istream& in, const std::string& name, const std::string& folder)
 {
-    TriangleMesh mesh;
-    MaterialTable table;
-    std::unordered_set<std::string> libraries;   // mtllib names already handled
-    bool haveLibrary = false, missingLibrary = false;
-    int32_t current = -1;
-    // Groups (`o` / `g`): ids in order of each name's first face.
-    std::unordered_map<std::string, int32_t> groupIds;
-    std::string groupName = "default";
-    int32_t groupId = -1;
-    bool haveGroups = false;
-    std::vector<PolygonFan> fans;   // polygons of more than 3 vertices, checked at the end
-
-    // A positive index may name a vertex defined further down (the spec does not forbid it and
-    // some writers emit faces first), so those are checked at the end, in file order.
-    std::vector<std::pair<size_t, long long>> forward;
-
+    ObjParser parser(name, folder);
     LineReader lines(in, name);
     std::string text;
     size_t line = 0;
     std::vector<std::string_view> tokens;
-    std::vector<uint32_t> polygon;
     while (lines.next(text, line)) {
         split(text, tokens);
         if (tokens.empty() || tokens[0][0] == '#') continue;
         const std::string_view key = tokens[0];
         if (key == "v") {
-            Vec3f p;
-            for (int i = 0; i < 3; ++i) {
-                double v;
-                if (size_t(i + 1) >= tokens.size() || tokens[i + 1][0] == '#') {
-                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
-                        << ": vertex needs 3 coordinates, got " << i);
-                }
-                if (!parseDouble(tokens[i + 1], v)) {
-                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
-                        << ": bad vertex coordinate " << quote(tokens[i + 1]));
-                }
-                if (!fitsFloat(v)) {
-                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
-                        << ": vertex coordinate " << formatNumber(v)
-                        << " is not a finite float");
-                }
-                p[i] = float(v);
-            }
-            if (mesh.points.size() >= std::numeric_limits<uint32_t>::max()) {
-                OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": more than 2^32-1 vertices");
-            }
-            mesh.points.push_back(p);   // a fourth (w) value and vertex colours are ignored
+            parser.vertex(tokens, line);
         } else if (key == "f") {
-            polygon.clear();
-            const long long count = static_cast<long long>(mesh.points.size());
-            for (size_t i = 1; i < tokens.size() && tokens[i][0] != '#'; ++i) {
-                // v, v/vt, v//vn, v/vt/vn: only v matters.
-                const std::string_view v = tokens[i].substr(0, tokens[i].find('/'));
-                long long k;
-                if (!parseInt(v, k)) {
-                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
-                        << ": bad face vertex " << quote(tokens[i]));
-                }
-                if (k == 0) {
-                    OPENVDB_THROW(openvdb::ValueError, at(name, line)
-                        << ": face index 0 (OBJ indices start at 1)");
-                }
-                if (k < 0) {
-                    if (-k > count) {
-                        OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": face index " << k
-                            << (count ? " out of range [-" + std::to_string(count) + ", -1]"
-                                      : std::string(" but no vertex is defined yet")));
-                    }
-                    k += count + 1;   // relative: -1 is the last vertex defined so far
-                } else if (k > count) {
-                    if (k > static_cast<long long>(std::numeric_limits<uint32_t>::max())) {
-                        OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": face index " << k
-                            << " out of range");
-                    }
-                    forward.emplace_back(line, k);
-                }
-                polygon.push_back(uint32_t(k - 1));
-            }
-            if (polygon.size() < 3) {
-                OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": face with "
-                    << polygon.size() << " vertices (at least 3 needed)");
-            }
-            // A fan now (vertices may still be to come); concave polygons are re-triangulated
-            // at the end.
-            if (polygon.size() > 3) {
-                fans.push_back({mesh.triangles.size(), uint32_t(polygon.size() - 2)});
-            }
-            if (groupId < 0) {
-                groupId = groupIds.emplace(groupName, int32_t(mesh.groups.size())).first->second;
-                if (size_t(groupId) == mesh.groups.size()) mesh.groups.push_back(groupName);
-            }
-            for (size_t i = 1; i + 1 < polygon.size(); ++i) {
-                mesh.triangles.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
-                mesh.triangleMaterials.push_back(current);
-                mesh.triangleGroups.push_back(groupId);
-            }
+            parser.face(tokens, line);
         } else if (key == "mtllib") {
-            if (tokens.size() < 2) {
-                OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": mtllib without a file");
-            }
-            if (folder.empty()) continue;
-            // Several names may follow; a single name with spaces in it is taken whole when such
-            // a file exists (Blender writes the file name unquoted).
-            const std::string whole(restOfLine(text, key));
-            std::vector<std::string> names;
-            bool byName = false;
-            if (tokens.size() > 2 && !findLibrary(folder, whole, byName).empty()) {
-                names.push_back(whole);
-            } else {
-                for (size_t i = 1; i < tokens.size(); ++i) names.emplace_back(tokens[i]);
-            }
-            for (const std::string& lib : names) {
-                if (!libraries.insert(lib).second) continue;   // named again: nothing new
-                const std::string found = findLibrary(folder, lib, byName);
-                if (found.empty()) {
-                    // As Blender does: the scene still loads, its materials plain.
-                    mesh.warnings.push_back(at(name, line) + ": material library '" + lib
-                        + "' not found: its materials get albedo 0.5 and no emission");
-                    missingLibrary = true;
-                    continue;
-                }
-                if (byName) {
-                    mesh.warnings.push_back(at(name, line) + ": material library '" + lib
-                        + "' not found as written; using '" + found.substr(folder.size() + 1)
-                        + "' beside the OBJ");
-                }
-                readMtl(found, at(name, line), table);
-            }
-            haveLibrary = true;
+            parser.mtllib(text, tokens, line);
         } else if (key == "usemtl") {
-            if (!haveLibrary) continue;   // no library: the scene's default material
-            const std::string material(restOfLine(text, key));
-            const auto found = table.index.find(material);
-            if (found != table.index.end()) {
-                current = found->second;
-            } else if (missingLibrary) {
-                // Presumably defined in the library that is missing: a plain material of its
-                // own, so its faces are still told apart (material names, albedo grid).
-                current = int32_t(table.materials.size());
-                table.index.emplace(material, current);
-                Material m;
-                m.name = material;
-                table.materials.push_back(m);
-            } else {
-                OPENVDB_THROW(openvdb::ValueError, at(name, line) << ": unknown material "
-                    << quote(material) << " (not in the mtllib files)");
-            }
+            parser.usemtl(text, key, line);
         } else if (key == "o" || key == "g") {
-            // The last `o` or `g` names the faces that follow; a bare `g` is the default group.
-            const std::string_view group = restOfLine(text, key);
-            groupName = group.empty() ? "default" : std::string(group);
-            haveGroups = true;
-            groupId = -1;   // found or made at the next face
+            parser.group(text, key);
         }
         // vt, vn, vp, s, l, p, and the many statements exporters add: nothing to voxelize.
     }
-
-    for (const auto& [faceLine, k] : forward) {
-        if (k > static_cast<long long>(mesh.points.size())) {
-            OPENVDB_THROW(openvdb::ValueError, at(name, faceLine) << ": face index " << k
-                << " out of range [1, " << mesh.points.size() << "]");
-        }
-    }
-    if (mesh.triangles.empty()) OPENVDB_THROW(openvdb::ValueError, name << ": no triangles");
-    triangulatePolygons(mesh.points, mesh.triangles, fans);
-    mesh.materials = std::move(table.materials);
-    if (mesh.materials.empty()) mesh.triangleMaterials.clear();
-    if (!haveGroups) {
-        mesh.triangleGroups.clear();
-        mesh.groups.clear();
-    }
-    return mesh;
+    return parser.finish();
 }
 
 
