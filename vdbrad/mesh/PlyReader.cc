@@ -431,12 +431,26 @@ readStream(std::istream& in, const std::string& name)
     return data;
 }
 
-TriangleMesh
-parsePly(const std::string& data, const std::string& name)
+enum class PlyFormat { None, Ascii, Little, Big };
+
+/// What a PLY header says, and where its body starts.
+struct PlyHeader
 {
-    // ---- header
-    size_t pos = 0, line = 0;
-    auto nextLine = [&](std::string_view& out) {
+    PlyFormat format = PlyFormat::None;
+    std::vector<PlyElement> elements;
+    size_t pos = 0;    // offset of the body in the data
+    size_t line = 0;   // number of the header's last line
+};
+
+/// The header's lines: CR stripped, counted for messages.
+struct HeaderLines
+{
+    const std::string& data;
+    size_t pos = 0;    // where the next line starts
+    size_t line = 0;   // number of the line last read
+
+    bool next(std::string_view& out)
+    {
         if (pos >= data.size()) return false;
         size_t nl = data.find('\n', pos);
         if (nl == std::string::npos) nl = data.size();
@@ -445,20 +459,74 @@ parsePly(const std::string& data, const std::string& name)
         pos = nl + 1;
         ++line;
         return true;
-    };
+    }
+};
+
+/// `element NAME COUNT`
+PlyElement
+parseElementLine(const std::vector<std::string_view>& tokens, const std::string& where,
+    size_t line)
+{
+    unsigned long long count = 0;
+    bool ok = tokens.size() == 3;
+    if (ok) {
+        const char* end = tokens[2].data() + tokens[2].size();
+        const auto [ptr, ec] = std::from_chars(tokens[2].data(), end, count);
+        ok = ec == std::errc() && ptr == end;
+    }
+    if (!ok) {
+        OPENVDB_THROW(openvdb::ValueError, where << ": expected 'element NAME COUNT'"
+            << (tokens.size() == 3 ? ", bad count " + quote(tokens[2]) : ""));
+    }
+    return {std::string(tokens[1]), count, line, {}};
+}
+
+/// `property TYPE NAME` or `property list COUNT ITEM NAME`
+PlyProperty
+parsePropertyLine(const std::vector<std::string_view>& tokens, const std::string& where)
+{
+    PlyProperty p;
+    if (tokens.size() == 5 && tokens[1] == "list") {
+        p.isList = true;
+        if (!plyType(tokens[2], p.countType) || !plyType(tokens[3], p.type)) {
+            OPENVDB_THROW(openvdb::ValueError, where << ": unknown list types "
+                << quote(tokens[2]) << " " << quote(tokens[3]));
+        }
+        if (!isInteger(p.countType)) {
+            OPENVDB_THROW(openvdb::ValueError, where << ": list count type "
+                << quote(tokens[2]) << " is not an integer type");
+        }
+        p.name = std::string(tokens[4]);
+    } else if (tokens.size() == 3) {
+        if (!plyType(tokens[1], p.type)) {
+            OPENVDB_THROW(openvdb::ValueError, where << ": unknown property type "
+                << quote(tokens[1]));
+        }
+        p.name = std::string(tokens[2]);
+    } else {
+        OPENVDB_THROW(openvdb::ValueError, where
+            << ": expected 'property TYPE NAME' or 'property list COUNT ITEM NAME'");
+    }
+    return p;
+}
+
+/// The header, up to and including `end_header`.
+PlyHeader
+readPlyHeader(const std::string& data, const std::string& name)
+{
+    HeaderLines lines{data};
     std::string_view text;
-    if (!nextLine(text) || text != "ply") {
+    if (!lines.next(text) || text != "ply") {
         OPENVDB_THROW(openvdb::ValueError, name << ": not a PLY file (no 'ply' line first)");
     }
-    enum class Format { None, Ascii, Little, Big } format = Format::None;
-    std::vector<PlyElement> elements;
+    PlyHeader header;
     std::vector<std::string_view> tokens;
     bool ended = false;
-    while (!ended && nextLine(text)) {
+    while (!ended && lines.next(text)) {
         split(text, tokens);
         if (tokens.empty()) continue;
         const std::string_view key = tokens[0];
-        const std::string where = at(name, line);
+        const std::string where = at(name, lines.line);
         if (key == "comment" || key == "obj_info") continue;
         if (key == "end_header") {
             ended = true;
@@ -466,62 +534,39 @@ parsePly(const std::string& data, const std::string& name)
             if (tokens.size() != 3) {
                 OPENVDB_THROW(openvdb::ValueError, where << ": expected 'format TYPE 1.0'");
             }
-            if (tokens[1] == "ascii") format = Format::Ascii;
-            else if (tokens[1] == "binary_little_endian") format = Format::Little;
-            else if (tokens[1] == "binary_big_endian") format = Format::Big;
+            if (tokens[1] == "ascii") header.format = PlyFormat::Ascii;
+            else if (tokens[1] == "binary_little_endian") header.format = PlyFormat::Little;
+            else if (tokens[1] == "binary_big_endian") header.format = PlyFormat::Big;
             else {
                 OPENVDB_THROW(openvdb::ValueError, where << ": unknown format "
                     << quote(tokens[1]));
             }
         } else if (key == "element") {
-            unsigned long long count = 0;
-            bool ok = tokens.size() == 3;
-            if (ok) {
-                const char* end = tokens[2].data() + tokens[2].size();
-                const auto [ptr, ec] = std::from_chars(tokens[2].data(), end, count);
-                ok = ec == std::errc() && ptr == end;
-            }
-            if (!ok) {
-                OPENVDB_THROW(openvdb::ValueError, where << ": expected 'element NAME COUNT'"
-                    << (tokens.size() == 3 ? ", bad count " + quote(tokens[2]) : ""));
-            }
-            elements.push_back({std::string(tokens[1]), count, line, {}});
+            header.elements.push_back(parseElementLine(tokens, where, lines.line));
         } else if (key == "property") {
-            if (elements.empty()) {
+            if (header.elements.empty()) {
                 OPENVDB_THROW(openvdb::ValueError, where << ": property before any element");
             }
-            PlyProperty p;
-            if (tokens.size() == 5 && tokens[1] == "list") {
-                p.isList = true;
-                if (!plyType(tokens[2], p.countType) || !plyType(tokens[3], p.type)) {
-                    OPENVDB_THROW(openvdb::ValueError, where << ": unknown list types "
-                        << quote(tokens[2]) << " " << quote(tokens[3]));
-                }
-                if (!isInteger(p.countType)) {
-                    OPENVDB_THROW(openvdb::ValueError, where << ": list count type "
-                        << quote(tokens[2]) << " is not an integer type");
-                }
-                p.name = std::string(tokens[4]);
-            } else if (tokens.size() == 3) {
-                if (!plyType(tokens[1], p.type)) {
-                    OPENVDB_THROW(openvdb::ValueError, where << ": unknown property type "
-                        << quote(tokens[1]));
-                }
-                p.name = std::string(tokens[2]);
-            } else {
-                OPENVDB_THROW(openvdb::ValueError, where
-                    << ": expected 'property TYPE NAME' or 'property list COUNT ITEM NAME'");
-            }
-            elements.back().properties.push_back(p);
+            header.elements.back().properties.push_back(parsePropertyLine(tokens, where));
         } else {
             OPENVDB_THROW(openvdb::ValueError, where << ": unexpected header line "
                 << quote(text));
         }
     }
     if (!ended) OPENVDB_THROW(openvdb::ValueError, name << ": header has no end_header");
-    if (format == Format::None) OPENVDB_THROW(openvdb::ValueError, name << ": no format line");
+    if (header.format == PlyFormat::None) {
+        OPENVDB_THROW(openvdb::ValueError, name << ": no format line");
+    }
+    header.pos = lines.pos;
+    header.line = lines.line;
+    return header;
+}
 
-    // ---- what the header promises
+/// What the header promises, checked before anything is sized from it; the vertex element.
+const PlyElement&
+checkPlyHeader(const PlyHeader& header, const std::string& data, const std::string& name)
+{
+    const std::vector<PlyElement>& elements = header.elements;
     const PlyElement* vertex = nullptr;
     const PlyElement* face = nullptr;
     for (const PlyElement& e : elements) {
@@ -552,7 +597,7 @@ parsePly(const std::string& data, const std::string& name)
     // more elements than there are bytes left is not a file cut short but a corrupt or hostile
     // one: refuse it before anything is sized from the count. Smaller shortfalls are found
     // while reading and reported as truncation, with how far the data got.
-    const uint64_t bytes = data.size() - std::min(pos, data.size());
+    const uint64_t bytes = data.size() - std::min(header.pos, data.size());
     uint64_t claimed = 0;
     for (const PlyElement& e : elements) {
         if (e.properties.empty()) continue;
@@ -567,20 +612,28 @@ parsePly(const std::string& data, const std::string& name)
         OPENVDB_THROW(openvdb::ValueError, name << ": " << vertex->count
             << " vertices: more than 32-bit indices can address");
     }
+    return *vertex;
+}
 
-    // ---- body
+TriangleMesh
+parsePly(const std::string& data, const std::string& name)
+{
+    const PlyHeader header = readPlyHeader(data, name);
+    const PlyElement& vertex = checkPlyHeader(header, data, name);
+    const size_t pos = header.pos;
+
     TriangleMesh mesh;
-    if (format == Format::Ascii) {
-        AsciiReader reader(name, std::string_view(data).substr(pos), line + 1);
-        readPlyBody(reader, elements, size_t(vertex->count), mesh);
+    if (header.format == PlyFormat::Ascii) {
+        AsciiReader reader(name, std::string_view(data).substr(pos), header.line + 1);
+        readPlyBody(reader, header.elements, size_t(vertex.count), mesh);
     } else {
         const uint16_t one = 1;
         unsigned char first;
         std::memcpy(&first, &one, 1);
         const bool hostLittle = first == 1;
         BinaryReader reader(name, data.data() + pos, data.data() + data.size(),
-            (format == Format::Little) != hostLittle);
-        readPlyBody(reader, elements, size_t(vertex->count), mesh);
+            (header.format == PlyFormat::Little) != hostLittle);
+        readPlyBody(reader, header.elements, size_t(vertex.count), mesh);
     }
     if (mesh.triangles.empty()) OPENVDB_THROW(openvdb::ValueError, name << ": no triangles");
     return mesh;
