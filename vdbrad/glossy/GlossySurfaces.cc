@@ -49,6 +49,28 @@ template<> struct Channels<openvdb::Vec3d> { static constexpr bool kRgb = true; 
 template<typename T> T channel(T v, int) { return v; }
 template<typename S> S channel(const openvdb::math::Vec3<S>& v, int ch) { return v[ch]; }
 
+/// @brief The rotation @a Q (local values to world values) with its sources numbered as slots of
+/// the lobe's @a support, where the kernel's product works.
+ControlPoints::Map
+onSupport(const ControlPoints::Map& Q, const std::vector<uint32_t>& support)
+{
+    // Sources as slots of the lobe's support; other local points carry nothing.
+    const size_t P = Q.size();
+    std::vector<uint32_t> slot(P, UINT32_MAX);
+    for (size_t j = 0; j < support.size(); ++j) slot[support[j]] = uint32_t(j);
+    ControlPoints::Map q;
+    q.start.push_back(0);
+    for (size_t i = 0; i < P; ++i) {
+        for (uint32_t e = Q.start[i]; e < Q.start[i + 1]; ++e) {
+            if (slot[Q.source[e]] == UINT32_MAX) continue;
+            q.source.push_back(slot[Q.source[e]]);
+            q.weight.push_back(Q.weight[e]);
+        }
+        q.start.push_back(uint32_t(q.source.size()));
+    }
+    return q;
+}
+
 } // namespace
 
 template<typename T>
@@ -98,7 +120,17 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
         mHarmonics.reset(new SphericalHarmonics(options.harmonicOrder));
     }
     mValues = mHarmonics ? mHarmonics->size() : mPoints.size();
-    const size_t n = scene.size(), P = mValues;
+    findGlossyVoxels(scene);
+    findClasses(scene, fitLobes(scene));
+    if (mHarmonics) setupHarmonics(directions);
+    else setupPoints(directions);
+    mSetupSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void
+GlossySurfaces::findGlossyVoxels(const Scene& scene)
+{
+    const size_t n = scene.size();
     mGlossyOf.assign(n, kNone);
     for (size_t i = 0; i < n; ++i) {
         const openvdb::Vec3f ks = scene.specular().rgb(i);
@@ -107,7 +139,11 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
             mVoxel.push_back(uint32_t(i));
         }
     }
+}
 
+std::vector<uint32_t>
+GlossySurfaces::fitLobes(const Scene& scene)
+{
     // Lobes: one kernel per rounded roughness.
     std::map<long, uint32_t> lobeOf;
     std::vector<uint32_t> lobe(mVoxel.size());
@@ -122,16 +158,21 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
         mHarmonicLobes.resize(roughness.size());
         for (size_t l = 0; l < roughness.size(); ++l) {
             mHarmonicLobes[l].reset(new HarmonicBrdf(*mHarmonics,
-                Brdf(options.model, roughness[l])));
+                Brdf(mOptions.model, roughness[l])));
         }
     } else {
         mLobes.resize(roughness.size());
         tbb::parallel_for(size_t(0), roughness.size(), [&](size_t l) {
-            mLobes[l].reset(new ControlBrdf(mPoints, Brdf(options.model, roughness[l]),
-                options.fit));
+            mLobes[l].reset(new ControlBrdf(mPoints, Brdf(mOptions.model, roughness[l]),
+                mOptions.fit));
         });
     }
+    return lobe;
+}
 
+void
+GlossySurfaces::findClasses(const Scene& scene, const std::vector<uint32_t>& lobe)
+{
     // Classes: (normal, lobe), the normals exact while few enough, else rounded to a fine grid.
     auto keyOf = [&](const openvdb::Vec3f& nrm, uint32_t l) {
         uint32_t b[3];
@@ -165,22 +206,28 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
         }
         mClassOf[g] = it->second;
     }
+}
 
-    if (mHarmonics) {
-        mHarmonicToward.resize(2 * directions.size() * P);
-        std::vector<double> y(P);
-        for (size_t k = 0; k < 2 * directions.size(); ++k) {
-            mHarmonics->basis(directions.unit(k / 2) * (k % 2 ? -1.0 : 1.0), y.data());
-            for (size_t b = 0; b < P; ++b) mHarmonicToward[k * P + b] = float(y[b]);
-        }
-        tbb::parallel_for(size_t(0), mClasses.size(), [&](size_t ci) {
-            setupHarmonicClass(mClasses[ci], directions);
-        });
-        mVoxelNorm.resize(mVoxel.size());
-        mSetupSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
-            .count();
-        return;
+void
+GlossySurfaces::setupHarmonics(const DirectionSet& directions)
+{
+    const size_t P = mValues;
+    mHarmonicToward.resize(2 * directions.size() * P);
+    std::vector<double> y(P);
+    for (size_t k = 0; k < 2 * directions.size(); ++k) {
+        mHarmonics->basis(directions.unit(k / 2) * (k % 2 ? -1.0 : 1.0), y.data());
+        for (size_t b = 0; b < P; ++b) mHarmonicToward[k * P + b] = float(y[b]);
     }
+    tbb::parallel_for(size_t(0), mClasses.size(), [&](size_t ci) {
+        setupHarmonicClass(mClasses[ci], directions);
+    });
+    mVoxelNorm.resize(mVoxel.size());
+}
+
+void
+GlossySurfaces::setupPoints(const DirectionSet& directions)
+{
+    const size_t P = mValues;
     mToward.resize(2 * directions.size());
     for (size_t k = 0; k < directions.size(); ++k) {
         mToward[2 * k] = mPoints.weights(directions.unit(k));
@@ -188,61 +235,57 @@ GlossySurfaces::GlossySurfaces(const Scene& scene, const DirectionSet& direction
     }
 
     tbb::parallel_for(size_t(0), mClasses.size(), [&](size_t ci) {
-        Class& c = mClasses[ci];
-        c.Q = mPoints.rotation(ControlPoints::frame(c.normal), options.rotation);
-        {
-            // Sources as slots of the lobe's support; other local points carry nothing.
-            const std::vector<uint32_t>& support = mLobes[c.lobe]->support();
-            std::vector<uint32_t> slot(P, UINT32_MAX);
-            for (size_t j = 0; j < support.size(); ++j) slot[support[j]] = uint32_t(j);
-            ControlPoints::Map q;
-            q.start.push_back(0);
-            for (size_t i = 0; i < P; ++i) {
-                for (uint32_t e = c.Q.start[i]; e < c.Q.start[i + 1]; ++e) {
-                    if (slot[c.Q.source[e]] == UINT32_MAX) continue;
-                    q.source.push_back(slot[c.Q.source[e]]);
-                    q.weight.push_back(c.Q.weight[e]);
-                }
-                q.start.push_back(uint32_t(q.source.size()));
-            }
-            c.Q = std::move(q);
-        }
-        // h_c: the cosine weights of the set's directions on this normal's hemisphere, splatted
-        // as the sweeps splat light.
-        c.share.assign(P, 0.0);
-        for (size_t k = 0; k < directions.size(); ++k) {
-            const double cosine = directions.unit(k).dot(c.normal);
-            if (cosine == 0.0) continue;
-            const ControlPoints::Weights& w = toward(k, cosine < 0.0);
-            const double weight = std::abs(cosine) * directions.factor(k);
-            for (int j = 0; j < 3; ++j) c.share[w.index[size_t(j)]] += weight * w.weight[size_t(j)];
-        }
-        double total = 0.0;
-        for (const double h : c.share) total += h;
-        c.exitance.resize(P);
-        for (size_t i = 0; i < P; ++i) c.exitance[i] = float(c.share[i] / total);
-        // Symmetric Sinkhorn: d <- sqrt(d / (K_c (d h))) until d (K_c (d h)) = 1 on the rows
-        // uniform light reaches.
-        std::vector<double> x(P), y(P), a, b;
-        product(c, c.share.data(), y.data(), a, b);
-        c.d.assign(P, 0.0);
-        for (size_t i = 0; i < P; ++i) c.d[i] = y[i] > 0.0 ? 1.0 / std::sqrt(y[i]) : 0.0;
-        for (int it = 0; it < 1000; ++it) {
-            for (size_t i = 0; i < P; ++i) x[i] = c.d[i] * c.share[i];
-            product(c, x.data(), y.data(), a, b);
-            double worst = 0.0;
-            for (size_t i = 0; i < P; ++i) {
-                if (c.d[i] == 0.0) continue;
-                worst = std::max(worst, std::abs(c.d[i] * y[i] - 1.0));
-                c.d[i] = y[i] > 0.0 ? std::sqrt(c.d[i] / y[i]) : 0.0;
-            }
-            if (worst < 1e-7) break;   // the kernel is float
-        }
+        setupPointClass(mClasses[ci], directions);
     });
 
     mInvShare.assign(mVoxel.size() * P, 0.f);
     for (size_t g = 0; g < mVoxel.size(); ++g) setShare(g, nullptr);
-    mSetupSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void
+GlossySurfaces::setupPointClass(Class& c, const DirectionSet& directions) const
+{
+    const size_t P = mValues;
+    c.Q = onSupport(mPoints.rotation(ControlPoints::frame(c.normal), mOptions.rotation),
+        mLobes[c.lobe]->support());
+    // h_c: the cosine weights of the set's directions on this normal's hemisphere, splatted
+    // as the sweeps splat light.
+    c.share.assign(P, 0.0);
+    for (size_t k = 0; k < directions.size(); ++k) {
+        const double cosine = directions.unit(k).dot(c.normal);
+        if (cosine == 0.0) continue;
+        const ControlPoints::Weights& w = toward(k, cosine < 0.0);
+        const double weight = std::abs(cosine) * directions.factor(k);
+        for (int j = 0; j < 3; ++j) c.share[w.index[size_t(j)]] += weight * w.weight[size_t(j)];
+    }
+    double total = 0.0;
+    for (const double h : c.share) total += h;
+    c.exitance.resize(P);
+    for (size_t i = 0; i < P; ++i) c.exitance[i] = float(c.share[i] / total);
+    scaleSymmetrically(c);
+}
+
+void
+GlossySurfaces::scaleSymmetrically(Class& c) const
+{
+    // Symmetric Sinkhorn: d <- sqrt(d / (K_c (d h))) until d (K_c (d h)) = 1 on the rows
+    // uniform light reaches.
+    const size_t P = mValues;
+    std::vector<double> x(P), y(P), a, b;
+    product(c, c.share.data(), y.data(), a, b);
+    c.d.assign(P, 0.0);
+    for (size_t i = 0; i < P; ++i) c.d[i] = y[i] > 0.0 ? 1.0 / std::sqrt(y[i]) : 0.0;
+    for (int it = 0; it < 1000; ++it) {
+        for (size_t i = 0; i < P; ++i) x[i] = c.d[i] * c.share[i];
+        product(c, x.data(), y.data(), a, b);
+        double worst = 0.0;
+        for (size_t i = 0; i < P; ++i) {
+            if (c.d[i] == 0.0) continue;
+            worst = std::max(worst, std::abs(c.d[i] * y[i] - 1.0));
+            c.d[i] = y[i] > 0.0 ? std::sqrt(c.d[i] / y[i]) : 0.0;
+        }
+        if (worst < 1e-7) break;   // the kernel is float
+    }
 }
 
 GlossySurfaces::~GlossySurfaces() = default;

@@ -161,6 +161,17 @@ public:
 
 private:
     struct Class;
+    // The constructor's steps, in order: the glossy voxels, the lobes' kernels (returns each
+    // glossy voxel's lobe), the (normal, lobe) classes, then each class's rotation and scaling
+    // and the directions' weights, for harmonics or for control points.
+    void findGlossyVoxels(const Scene& scene);
+    std::vector<uint32_t> fitLobes(const Scene& scene);
+    void findClasses(const Scene& scene, const std::vector<uint32_t>& lobe);
+    void setupHarmonics(const DirectionSet& directions);
+    void setupPoints(const DirectionSet& directions);
+    void setupPointClass(Class& c, const DirectionSet& directions) const;
+    // D_c: the symmetric (Sinkhorn) scaling that makes A_c h_c = 1 (see the file comment).
+    void scaleSymmetrically(Class& c) const;
     // Harmonics: Powell's correction Delta x = (q (h . x) + h (q . x) - (q . h)(h . x) h / |h|^2)
     // / |h|^2 for a share h of total weight Z, with q = u - D K D^T h / Z.
     struct Normaliser
