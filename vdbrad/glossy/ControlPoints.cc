@@ -258,8 +258,14 @@ ControlPoints::frame(const Vec3d& normal)
     return m;
 }
 
-ControlPoints::Map
-ControlPoints::rotation(const Mat3d& R, RotationKind kind) const
+namespace {
+
+/// A rotated point without a partner, or a real point without an owner.
+constexpr uint32_t kFree = UINT32_MAX;
+
+/// @throw openvdb::ValueError unless @a R is a proper rotation (orthonormal, det +1, to 1e-6)
+void
+checkRotation(const Mat3d& R)
 {
     const Mat3d RtR = R.transpose() * R;
     double off = std::abs(R.det() - 1.0);
@@ -270,21 +276,158 @@ ControlPoints::rotation(const Mat3d& R, RotationKind kind) const
         OPENVDB_THROW(openvdb::ValueError, "not a proper rotation (orthonormality or determinant "
             "off by " << off << ")");
     }
+}
+
+/// Appends the row of real point @a i that interpolates f at R^T c_i (Resampled).
+void
+appendResampledRow(const ControlPoints& points, const Mat3d& R, size_t i, ControlPoints::Map& map)
+{
+    const ControlPoints::Weights w = points.weights(points.point(i) * R);
+    for (int k = 0; k < 3; ++k) {
+        if (w.weight[size_t(k)] == 0.0) continue;
+        map.source.push_back(w.index[size_t(k)]);
+        map.weight.push_back(float(w.weight[size_t(k)]));
+    }
+    map.start.push_back(uint32_t(map.source.size()));
+}
+
+/// @brief Appends every real point's row of the Continuous rotation: the weighted mean of what
+/// the @a rotated points splat on it, or Resampled's row where nothing lands.
+void
+appendContinuousRows(const ControlPoints& points, const Mat3d& R,
+    const std::vector<Vec3d>& rotated, ControlPoints::Map& map)
+{
+    const size_t n = points.size();
+    std::vector<std::vector<std::pair<uint32_t, double>>> rows(n);
+    for (size_t j = 0; j < n; ++j) {
+        const ControlPoints::Weights w = points.weights(rotated[j]);
+        for (int k = 0; k < 3; ++k) {
+            if (w.weight[size_t(k)] > 0.0) {
+                rows[w.index[size_t(k)]].emplace_back(uint32_t(j), w.weight[size_t(k)]);
+            }
+        }
+    }
+    for (size_t i = 0; i < n; ++i) {
+        double total = 0.0;
+        for (const auto& e : rows[i]) total += e.second;
+        if (total <= 0.0) { appendResampledRow(points, R, i, map); continue; }
+        for (const auto& e : rows[i]) {
+            map.source.push_back(e.first);
+            map.weight.push_back(float(e.second / total));
+        }
+        map.start.push_back(uint32_t(map.source.size()));
+    }
+}
+
+/// @brief The candidate pairs (-cosine, rotated j, real i) within @a cosBound of each other;
+/// @a near receives each rotated point's candidates, nearest first. @a mark and @a visit: the
+/// walks' visited stamps, kept across calls.
+std::vector<std::tuple<double, uint32_t, uint32_t>>
+candidatePairs(const ControlPoints& points, const std::vector<Vec3d>& rotated, double cosBound,
+    std::vector<std::vector<uint32_t>>& near, std::vector<uint32_t>& mark, uint32_t& visit)
+{
+    // Candidates: a walk over the real mesh from the nearest corner, within the bound.
+    std::vector<std::tuple<double, uint32_t, uint32_t>> pairs;
+    for (size_t j = 0; j < rotated.size(); ++j) {
+        near[j].clear();
+        const ControlPoints::Weights w = points.weights(rotated[j]);
+        std::vector<uint32_t> stack(w.index.begin(), w.index.end());
+        ++visit;
+        for (const uint32_t i : stack) mark[i] = visit;
+        while (!stack.empty()) {
+            const uint32_t i = stack.back();
+            stack.pop_back();
+            const double d = rotated[j].dot(points.point(i));
+            if (d < cosBound) continue;
+            near[j].push_back(i);
+            pairs.emplace_back(-d, uint32_t(j), i);
+            for (const uint32_t k : points.neighbours(i)) {
+                if (mark[k] != visit) { mark[k] = visit; stack.push_back(k); }
+            }
+        }
+        std::sort(near[j].begin(), near[j].end(), [&](uint32_t a, uint32_t b) {
+            return rotated[j].dot(points.point(a)) > rotated[j].dot(points.point(b));
+        });
+    }
+    return pairs;
+}
+
+/// @brief Kuhn's augmenting paths (iterative DFS), nearest candidates first, for the rotated
+/// points @a partner leaves free; whether every one found a partner among its @a near ones.
+/// @a stamp and @a attempt: the searches' visited stamps, kept across calls.
+bool
+augmentPairs(const std::vector<std::vector<uint32_t>>& near, std::vector<uint32_t>& partner,
+    std::vector<uint32_t>& owner, std::vector<uint32_t>& stamp, uint32_t& attempt)
+{
+    const size_t n = partner.size();
+    bool complete = true;
+    for (uint32_t j0 = 0; j0 < n && complete; ++j0) {
+        if (partner[j0] != kFree) continue;
+        ++attempt;
+        std::vector<std::pair<uint32_t, size_t>> path{{j0, 0}};   // rotated point, next candidate
+        bool found = false;
+        while (!path.empty() && !found) {
+            auto& [j, next] = path.back();
+            if (next == near[j].size()) { path.pop_back(); continue; }
+            const uint32_t i = near[j][next++];
+            if (stamp[i] == attempt) continue;
+            stamp[i] = attempt;
+            if (owner[i] == kFree) {
+                // Shift every pair along the path by one.
+                uint32_t take = i;
+                for (size_t k = path.size(); k-- > 0;) {
+                    const uint32_t r = path[k].first, had = partner[r];
+                    partner[r] = take;
+                    owner[take] = r;
+                    take = had;
+                }
+                found = true;
+            } else {
+                path.emplace_back(owner[i], 0);
+            }
+        }
+        complete = found;
+    }
+    return complete;
+}
+
+/// @brief The Permutation's pairing: the real point of each of the @a rotated points. Pairs
+/// closer than a bound, closest first, then augmenting paths for the rotated points left over;
+/// the bound grows until every point is paired.
+std::vector<uint32_t>
+pairRotatedPoints(const ControlPoints& points, const std::vector<Vec3d>& rotated)
+{
+    const size_t n = points.size();
+    std::vector<uint32_t> partner(n), owner(n);   // rotated j -> real i, real i -> rotated j
+    std::vector<std::vector<uint32_t>> near(n);  // per rotated point, real points within the bound
+    std::vector<uint32_t> mark(n, 0), stamp(n, 0);
+    uint32_t visit = 0, attempt = 0;
+    for (double bound = 0.6 * points.spacing();; bound *= 1.25) {
+        const double cosBound = std::cos(std::min(bound, 3.2));
+        std::vector<std::tuple<double, uint32_t, uint32_t>> pairs =
+            candidatePairs(points, rotated, cosBound, near, mark, visit);
+        std::sort(pairs.begin(), pairs.end());
+        std::fill(partner.begin(), partner.end(), kFree);
+        std::fill(owner.begin(), owner.end(), kFree);
+        for (const auto& [d, j, i] : pairs) {
+            if (partner[j] == kFree && owner[i] == kFree) { partner[j] = i; owner[i] = j; }
+        }
+        if (augmentPairs(near, partner, owner, stamp, attempt)) return partner;
+    }
+}
+
+} // namespace
+
+ControlPoints::Map
+ControlPoints::rotation(const Mat3d& R, RotationKind kind) const
+{
+    checkRotation(R);
     const size_t n = size();
     Map map;
     map.start.assign(1, 0);
-    auto resampledRow = [&](size_t i) {
-        const Weights w = weights(mPoints[i] * R);
-        for (int k = 0; k < 3; ++k) {
-            if (w.weight[size_t(k)] == 0.0) continue;
-            map.source.push_back(w.index[size_t(k)]);
-            map.weight.push_back(float(w.weight[size_t(k)]));
-        }
-        map.start.push_back(uint32_t(map.source.size()));
-    };
 
     if (kind == RotationKind::Resampled) {
-        for (size_t i = 0; i < n; ++i) resampledRow(i);
+        for (size_t i = 0; i < n; ++i) appendResampledRow(*this, R, i, map);
         return map;
     }
 
@@ -292,97 +435,11 @@ ControlPoints::rotation(const Mat3d& R, RotationKind kind) const
     for (size_t j = 0; j < n; ++j) rotated[j] = R * mPoints[j];
 
     if (kind == RotationKind::Continuous) {
-        std::vector<std::vector<std::pair<uint32_t, double>>> rows(n);
-        for (size_t j = 0; j < n; ++j) {
-            const Weights w = weights(rotated[j]);
-            for (int k = 0; k < 3; ++k) {
-                if (w.weight[size_t(k)] > 0.0) {
-                    rows[w.index[size_t(k)]].emplace_back(uint32_t(j), w.weight[size_t(k)]);
-                }
-            }
-        }
-        for (size_t i = 0; i < n; ++i) {
-            double total = 0.0;
-            for (const auto& e : rows[i]) total += e.second;
-            if (total <= 0.0) { resampledRow(i); continue; }
-            for (const auto& e : rows[i]) {
-                map.source.push_back(e.first);
-                map.weight.push_back(float(e.second / total));
-            }
-            map.start.push_back(uint32_t(map.source.size()));
-        }
+        appendContinuousRows(*this, R, rotated, map);
         return map;
     }
 
-    // Permutation: pairs closer than a bound, closest first, then augmenting paths for the
-    // rotated points left over; the bound grows until every point is paired.
-    const uint32_t kFree = UINT32_MAX;
-    std::vector<uint32_t> partner(n), owner(n);   // rotated j -> real i, real i -> rotated j
-    std::vector<std::vector<uint32_t>> near(n);  // per rotated point, real points within the bound
-    std::vector<uint32_t> mark(n, 0), stamp(n, 0);
-    uint32_t visit = 0, attempt = 0;
-    for (double bound = 0.6 * mSpacing;; bound *= 1.25) {
-        const double cosBound = std::cos(std::min(bound, 3.2));
-        // Candidates: a walk over the real mesh from the nearest corner, within the bound.
-        std::vector<std::tuple<double, uint32_t, uint32_t>> pairs;
-        for (size_t j = 0; j < n; ++j) {
-            near[j].clear();
-            const Weights w = weights(rotated[j]);
-            std::vector<uint32_t> stack(w.index.begin(), w.index.end());
-            ++visit;
-            for (const uint32_t i : stack) mark[i] = visit;
-            while (!stack.empty()) {
-                const uint32_t i = stack.back();
-                stack.pop_back();
-                const double d = rotated[j].dot(mPoints[i]);
-                if (d < cosBound) continue;
-                near[j].push_back(i);
-                pairs.emplace_back(-d, uint32_t(j), i);
-                for (const uint32_t k : mNeighbours[i]) {
-                    if (mark[k] != visit) { mark[k] = visit; stack.push_back(k); }
-                }
-            }
-            std::sort(near[j].begin(), near[j].end(), [&](uint32_t a, uint32_t b) {
-                return rotated[j].dot(mPoints[a]) > rotated[j].dot(mPoints[b]);
-            });
-        }
-        std::sort(pairs.begin(), pairs.end());
-        std::fill(partner.begin(), partner.end(), kFree);
-        std::fill(owner.begin(), owner.end(), kFree);
-        for (const auto& [d, j, i] : pairs) {
-            if (partner[j] == kFree && owner[i] == kFree) { partner[j] = i; owner[i] = j; }
-        }
-        // Kuhn's augmenting paths (iterative DFS), nearest candidates first.
-        bool complete = true;
-        for (uint32_t j0 = 0; j0 < n && complete; ++j0) {
-            if (partner[j0] != kFree) continue;
-            ++attempt;
-            std::vector<std::pair<uint32_t, size_t>> path{{j0, 0}};   // rotated point, next candidate
-            bool found = false;
-            while (!path.empty() && !found) {
-                auto& [j, next] = path.back();
-                if (next == near[j].size()) { path.pop_back(); continue; }
-                const uint32_t i = near[j][next++];
-                if (stamp[i] == attempt) continue;
-                stamp[i] = attempt;
-                if (owner[i] == kFree) {
-                    // Shift every pair along the path by one.
-                    uint32_t take = i;
-                    for (size_t k = path.size(); k-- > 0;) {
-                        const uint32_t r = path[k].first, had = partner[r];
-                        partner[r] = take;
-                        owner[take] = r;
-                        take = had;
-                    }
-                    found = true;
-                } else {
-                    path.emplace_back(owner[i], 0);
-                }
-            }
-            complete = found;
-        }
-        if (complete) break;
-    }
+    const std::vector<uint32_t> partner = pairRotatedPoints(*this, rotated);
     std::vector<uint32_t> source(n);
     for (size_t j = 0; j < n; ++j) source[partner[j]] = uint32_t(j);
     for (size_t i = 0; i < n; ++i) {
