@@ -526,79 +526,7 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
     }
 
     if (radiosity) {
-        if (!radiosity->isType<openvdb::FloatGrid>() && !radiosity->isType<openvdb::Vec3SGrid>()) {
-            OPENVDB_THROW(openvdb::TypeError, "grid 'radiosity' has type "
-                << radiosity->valueType() << ", expected float or vec3s");
-        }
-        mScene = buildScene(grids, options.scene, interrupt);
-        const std::string advice = "render with the same --surface and --separation as the solve";
-        if (radiosity->transform() != mScene.transform()) {
-            OPENVDB_THROW(openvdb::ValueError, "the radiosity grid is not on the transform of the "
-                "surface '" << mScene.surfaceName() << "': " << advice);
-        }
-        const size_t missing = radiosity->isType<openvdb::FloatGrid>()
-            ? missingVoxels(static_cast<const openvdb::FloatGrid&>(*radiosity), mScene.voxels())
-            : missingVoxels(static_cast<const openvdb::Vec3SGrid&>(*radiosity), mScene.voxels());
-        const openvdb::Index64 active = radiosity->activeVoxelCount();
-        if (missing > 0 || active != mScene.size()) {
-            OPENVDB_THROW(openvdb::ValueError, "the radiosity grid's " << active
-                << " active voxels are not the " << mScene.size() << " surface voxels of '"
-                << mScene.surfaceName() << "' (" << missing << " surface voxels have no value): "
-                << advice);
-        }
-        if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled("render set-up");
-        mRadiosity = Attribute::sample(*radiosity, mScene.voxels(), names::kRadiosity,
-            std::numeric_limits<float>::lowest());
-        // Glossy: the lobes' exitance leaves the voxels' values, and is drawn view-dependent.
-        const openvdb::GridBase::ConstPtr specular = findGrid(grids, names::kSpecularRadiosity);
-        const bool glossy = specular && mScene.isGlossy() && options.glossyRays > 0;
-        // The gather reads the total radiosity (its `reflected`): made before the lobes leave.
-        if (options.gather > 0 || glossy) mGather.reset(new Gather(mScene, mRadiosity, options));
-        if (glossy) {
-            if (specular->transform() != mScene.transform()) {
-                OPENVDB_THROW(openvdb::ValueError, "the specular_radiosity grid is not on the "
-                    "transform of the surface '" << mScene.surfaceName() << "': " << advice);
-            }
-            const Attribute lobes = Attribute::sample(*specular, mScene.voxels(),
-                names::kSpecularRadiosity, 0.f);
-            const openvdb::Metadata::ConstPtr model = radiosity->getMetadata<openvdb::StringMetadata>(
-                meta::kBrdf);
-            mGlossy.reset(new Glossy(mScene, mGather->sampler,
-                model ? brdfModelFromName(model->str()) : BrdfModel::Phong));
-            std::vector<Vec3f> diffuse(mScene.size());
-            for (size_t i = 0; i < diffuse.size(); ++i) {
-                diffuse[i] = mRadiosity.rgb(i) - lobes.rgb(i);
-            }
-            const bool rgb = mRadiosity.isRgb() || lobes.isRgb();
-            if (rgb) {
-                mRadiosity = Attribute::fromRgb(std::move(diffuse));
-            } else {
-                std::vector<float> grey(diffuse.size());
-                for (size_t i = 0; i < grey.size(); ++i) grey[i] = diffuse[i][0];
-                mRadiosity = Attribute::fromGrey(std::move(grey));
-            }
-        }
-        if (mScene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
-            // The grid the scene was built from: identifyRoles picks it by type and class, and
-            // another grid of the file may carry the same name (found by fuzz_scene: looking it
-            // up by name cast an Int32 grid to a level set).
-            const auto ls = openvdb::gridConstPtrCast<openvdb::FloatGrid>(roles.surface);
-            if (!ls) OPENVDB_THROW(openvdb::TypeError, "the surface is not a float level set");
-            // A shallow copy: the tree is shared; only the class changes, for grids whose
-            // exporter dropped it (the contract accepts them when named).
-            mLevelSet = std::const_pointer_cast<openvdb::FloatGrid>(ls->copy());
-            mLevelSet->setGridClass(openvdb::GRID_LEVEL_SET);
-            try {
-                mLevelSetShared.reset(new LevelSetShared{LevelSetIntersector(*mLevelSet)});
-            } catch (const openvdb::Exception& e) {
-                OPENVDB_THROW(openvdb::ValueError, "level set '" << mScene.surfaceName()
-                    << "' cannot be ray traced: " << errorMessage(e));
-            }
-        }
-        mHasSurface = true;
-        mSurfaceBox = mScene.voxels().bbox();
-        mWorldBounds = worldBoundsOf(mSurfaceBox, mScene.transform());
-        if (options.mesh) setMesh(*options.mesh);
+        setSurface(grids, roles, radiosity, interrupt);
     } else if (roles.surface) {
         mWarnings.push_back("surface '" + roles.surface->getName() + "' not shown: no radiosity "
             "grid (solve the scene first)");
@@ -607,73 +535,7 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
     if (options.mesh && !mHasSurface) {
         OPENVDB_THROW(openvdb::ValueError, "a mesh shows a solved surface, and the file has none");
     }
-    if (roles.density) {
-        if (options.cloudSource.empty()) {
-            OPENVDB_THROW(openvdb::ValueError, "the cloud source grid name is empty");
-        }
-        const openvdb::GridBase::ConstPtr J = findGrid(grids, options.cloudSource);
-        // The emission as the solve read it (its options are in the solved grid).
-        mCloud = buildCloud(grids, J ? emissionAsSolved(*J, options.cloud) : options.cloud,
-            interrupt);
-        if (J) {
-            const auto& density = *findGrid(grids, options.cloud.density);
-            if (J->transform() != density.transform()) {
-                OPENVDB_THROW(openvdb::ValueError, "cloud source '" << options.cloudSource
-                    << "' is not on the transform of '" << options.cloud.density << "'");
-            }
-            const Attribute j = Attribute::sample(*J, mCloud.voxels(), options.cloudSource, 0.f);
-            const Attribute& albedo = mCloud.albedo();
-            // What the medium sends towards the eye per unit of extinction: albedo x J, and
-            // its own emission, epsilon / sigma_t (Cloud.h).
-            const Attribute& emission = mCloud.emission();
-            auto emitted = [&](size_t i) {
-                return mCloud.extinction(i) > 0.f ? emission.rgb(i) / mCloud.extinction(i)
-                                                  : Vec3f(0.f);
-            };
-            const size_t n = mCloud.size();
-            if (j.isRgb() || albedo.isRgb() || emission.isRgb()) {
-                std::vector<Vec3f> s(n);
-                for (size_t i = 0; i < n; ++i) {
-                    const Vec3f a = albedo.rgb(i), v = j.rgb(i);
-                    s[i] = Vec3f(a[0] * v[0], a[1] * v[1], a[2] * v[2]) + emitted(i);
-                }
-                mSource = Attribute::fromRgb(std::move(s));
-            } else {
-                std::vector<float> s(n);
-                for (size_t i = 0; i < n; ++i) s[i] = albedo.grey(i) * j.grey(i) + emitted(i)[0];
-                mSource = Attribute::fromGrey(std::move(s));
-            }
-        } else {
-            mWarnings.push_back("cloud '" + options.cloud.density + "' has no source grid '"
-                + options.cloudSource + "': rendered absorbing only (solve the cloud first)");
-        }
-        mHasCloud = true;
-        mCloudEmits = !mSource.isZero();
-        mCloudBox = mCloud.voxels().bbox();
-        openvdb::BBoxd b = worldBoundsOf(mCloudBox, mCloud.transform());
-        // A ground under the cloud (CloudTransfer::groundGrid): a float grid one voxel thick,
-        // its albedo and vertical axis in its metadata.
-        const openvdb::GridBase::ConstPtr ground = findGrid(grids, "ground_irradiance");
-        if (ground && ground->isType<openvdb::FloatGrid>() && ground->activeVoxelCount() > 0) {
-            const auto albedo = ground->getMetadata<openvdb::FloatMetadata>("vdbrad:ground_albedo");
-            const auto up = ground->getMetadata<openvdb::Int32Metadata>("vdbrad:up");
-            const openvdb::CoordBBox box = ground->evalActiveVoxelBoundingBox();
-            if (albedo && up && up->value() >= 0 && up->value() <= 2
-                && box.dim()[up->value()] == 1
-                && ground->transform() == findGrid(grids, options.cloud.density)->transform()) {
-                mGround = openvdb::gridConstPtrCast<openvdb::FloatGrid>(ground);
-                mGroundAlbedo = albedo->value();
-                mGroundUp = up->value();
-                mGroundLayer = box.min()[mGroundUp];
-                b.expand(worldBoundsOf(box, mCloud.transform()));
-            } else {
-                mWarnings.push_back("'ground_irradiance' not shown: not a cloud solver's ground "
-                    "on the cloud's transform");
-            }
-        }
-        if (mHasSurface) mWorldBounds.expand(b);
-        else mWorldBounds = b;
-    }
+    if (roles.density) setCloud(grids, interrupt);
 
     const double aspect = double(options.width) / double(options.height);
     mCamera = options.camera ? *options.camera : defaultCamera(mWorldBounds, aspect);
@@ -685,6 +547,155 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
 }
 
 Renderer::~Renderer() = default;
+
+void
+Renderer::setSurface(const openvdb::GridPtrVec& grids, const GridRoles& roles,
+    const openvdb::GridBase::ConstPtr& radiosity, openvdb::util::NullInterrupter* interrupt)
+{
+    if (!radiosity->isType<openvdb::FloatGrid>() && !radiosity->isType<openvdb::Vec3SGrid>()) {
+        OPENVDB_THROW(openvdb::TypeError, "grid 'radiosity' has type "
+            << radiosity->valueType() << ", expected float or vec3s");
+    }
+    mScene = buildScene(grids, mOptions.scene, interrupt);
+    const std::string advice = "render with the same --surface and --separation as the solve";
+    if (radiosity->transform() != mScene.transform()) {
+        OPENVDB_THROW(openvdb::ValueError, "the radiosity grid is not on the transform of the "
+            "surface '" << mScene.surfaceName() << "': " << advice);
+    }
+    const size_t missing = radiosity->isType<openvdb::FloatGrid>()
+        ? missingVoxels(static_cast<const openvdb::FloatGrid&>(*radiosity), mScene.voxels())
+        : missingVoxels(static_cast<const openvdb::Vec3SGrid&>(*radiosity), mScene.voxels());
+    const openvdb::Index64 active = radiosity->activeVoxelCount();
+    if (missing > 0 || active != mScene.size()) {
+        OPENVDB_THROW(openvdb::ValueError, "the radiosity grid's " << active
+            << " active voxels are not the " << mScene.size() << " surface voxels of '"
+            << mScene.surfaceName() << "' (" << missing << " surface voxels have no value): "
+            << advice);
+    }
+    if (openvdb::util::wasInterrupted(interrupt)) throw Cancelled("render set-up");
+    mRadiosity = Attribute::sample(*radiosity, mScene.voxels(), names::kRadiosity,
+        std::numeric_limits<float>::lowest());
+    // Glossy: the lobes' exitance leaves the voxels' values, and is drawn view-dependent.
+    const openvdb::GridBase::ConstPtr specular = findGrid(grids, names::kSpecularRadiosity);
+    const bool glossy = specular && mScene.isGlossy() && mOptions.glossyRays > 0;
+    // The gather reads the total radiosity (its `reflected`): made before the lobes leave.
+    if (mOptions.gather > 0 || glossy) mGather.reset(new Gather(mScene, mRadiosity, mOptions));
+    if (glossy) {
+        if (specular->transform() != mScene.transform()) {
+            OPENVDB_THROW(openvdb::ValueError, "the specular_radiosity grid is not on the "
+                "transform of the surface '" << mScene.surfaceName() << "': " << advice);
+        }
+        const Attribute lobes = Attribute::sample(*specular, mScene.voxels(),
+            names::kSpecularRadiosity, 0.f);
+        const openvdb::Metadata::ConstPtr model = radiosity->getMetadata<openvdb::StringMetadata>(
+            meta::kBrdf);
+        mGlossy.reset(new Glossy(mScene, mGather->sampler,
+            model ? brdfModelFromName(model->str()) : BrdfModel::Phong));
+        std::vector<Vec3f> diffuse(mScene.size());
+        for (size_t i = 0; i < diffuse.size(); ++i) {
+            diffuse[i] = mRadiosity.rgb(i) - lobes.rgb(i);
+        }
+        const bool rgb = mRadiosity.isRgb() || lobes.isRgb();
+        if (rgb) {
+            mRadiosity = Attribute::fromRgb(std::move(diffuse));
+        } else {
+            std::vector<float> grey(diffuse.size());
+            for (size_t i = 0; i < grey.size(); ++i) grey[i] = diffuse[i][0];
+            mRadiosity = Attribute::fromGrey(std::move(grey));
+        }
+    }
+    if (mScene.surfaceKind() == GridRoles::SurfaceKind::LevelSet) {
+        // The grid the scene was built from: identifyRoles picks it by type and class, and
+        // another grid of the file may carry the same name (found by fuzz_scene: looking it
+        // up by name cast an Int32 grid to a level set).
+        const auto ls = openvdb::gridConstPtrCast<openvdb::FloatGrid>(roles.surface);
+        if (!ls) OPENVDB_THROW(openvdb::TypeError, "the surface is not a float level set");
+        // A shallow copy: the tree is shared; only the class changes, for grids whose
+        // exporter dropped it (the contract accepts them when named).
+        mLevelSet = std::const_pointer_cast<openvdb::FloatGrid>(ls->copy());
+        mLevelSet->setGridClass(openvdb::GRID_LEVEL_SET);
+        try {
+            mLevelSetShared.reset(new LevelSetShared{LevelSetIntersector(*mLevelSet)});
+        } catch (const openvdb::Exception& e) {
+            OPENVDB_THROW(openvdb::ValueError, "level set '" << mScene.surfaceName()
+                << "' cannot be ray traced: " << errorMessage(e));
+        }
+    }
+    mHasSurface = true;
+    mSurfaceBox = mScene.voxels().bbox();
+    mWorldBounds = worldBoundsOf(mSurfaceBox, mScene.transform());
+    if (mOptions.mesh) setMesh(*mOptions.mesh);
+}
+
+void
+Renderer::setCloud(const openvdb::GridPtrVec& grids, openvdb::util::NullInterrupter* interrupt)
+{
+    if (mOptions.cloudSource.empty()) {
+        OPENVDB_THROW(openvdb::ValueError, "the cloud source grid name is empty");
+    }
+    const openvdb::GridBase::ConstPtr J = findGrid(grids, mOptions.cloudSource);
+    // The emission as the solve read it (its options are in the solved grid).
+    mCloud = buildCloud(grids, J ? emissionAsSolved(*J, mOptions.cloud) : mOptions.cloud,
+        interrupt);
+    if (J) {
+        const auto& density = *findGrid(grids, mOptions.cloud.density);
+        if (J->transform() != density.transform()) {
+            OPENVDB_THROW(openvdb::ValueError, "cloud source '" << mOptions.cloudSource
+                << "' is not on the transform of '" << mOptions.cloud.density << "'");
+        }
+        const Attribute j = Attribute::sample(*J, mCloud.voxels(), mOptions.cloudSource, 0.f);
+        const Attribute& albedo = mCloud.albedo();
+        // What the medium sends towards the eye per unit of extinction: albedo x J, and
+        // its own emission, epsilon / sigma_t (Cloud.h).
+        const Attribute& emission = mCloud.emission();
+        auto emitted = [&](size_t i) {
+            return mCloud.extinction(i) > 0.f ? emission.rgb(i) / mCloud.extinction(i)
+                                              : Vec3f(0.f);
+        };
+        const size_t n = mCloud.size();
+        if (j.isRgb() || albedo.isRgb() || emission.isRgb()) {
+            std::vector<Vec3f> s(n);
+            for (size_t i = 0; i < n; ++i) {
+                const Vec3f a = albedo.rgb(i), v = j.rgb(i);
+                s[i] = Vec3f(a[0] * v[0], a[1] * v[1], a[2] * v[2]) + emitted(i);
+            }
+            mSource = Attribute::fromRgb(std::move(s));
+        } else {
+            std::vector<float> s(n);
+            for (size_t i = 0; i < n; ++i) s[i] = albedo.grey(i) * j.grey(i) + emitted(i)[0];
+            mSource = Attribute::fromGrey(std::move(s));
+        }
+    } else {
+        mWarnings.push_back("cloud '" + mOptions.cloud.density + "' has no source grid '"
+            + mOptions.cloudSource + "': rendered absorbing only (solve the cloud first)");
+    }
+    mHasCloud = true;
+    mCloudEmits = !mSource.isZero();
+    mCloudBox = mCloud.voxels().bbox();
+    openvdb::BBoxd b = worldBoundsOf(mCloudBox, mCloud.transform());
+    // A ground under the cloud (CloudTransfer::groundGrid): a float grid one voxel thick,
+    // its albedo and vertical axis in its metadata.
+    const openvdb::GridBase::ConstPtr ground = findGrid(grids, "ground_irradiance");
+    if (ground && ground->isType<openvdb::FloatGrid>() && ground->activeVoxelCount() > 0) {
+        const auto albedo = ground->getMetadata<openvdb::FloatMetadata>("vdbrad:ground_albedo");
+        const auto up = ground->getMetadata<openvdb::Int32Metadata>("vdbrad:up");
+        const openvdb::CoordBBox box = ground->evalActiveVoxelBoundingBox();
+        if (albedo && up && up->value() >= 0 && up->value() <= 2
+            && box.dim()[up->value()] == 1
+            && ground->transform() == findGrid(grids, mOptions.cloud.density)->transform()) {
+            mGround = openvdb::gridConstPtrCast<openvdb::FloatGrid>(ground);
+            mGroundAlbedo = albedo->value();
+            mGroundUp = up->value();
+            mGroundLayer = box.min()[mGroundUp];
+            b.expand(worldBoundsOf(box, mCloud.transform()));
+        } else {
+            mWarnings.push_back("'ground_irradiance' not shown: not a cloud solver's ground "
+                "on the cloud's transform");
+        }
+    }
+    if (mHasSurface) mWorldBounds.expand(b);
+    else mWorldBounds = b;
+}
 
 void
 Renderer::setMesh(const TriangleMesh& mesh)

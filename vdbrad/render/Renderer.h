@@ -160,6 +160,12 @@ public:
     Image render(openvdb::util::NullInterrupter* interrupt = nullptr) const;
 
 private:
+    // The constructor's steps: the solved surface (its scene, its @a radiosity checked against
+    // the scene's voxels, the glossy lobes, the level set, the mesh), then the cloud (its
+    // source, its ground).
+    void setSurface(const openvdb::GridPtrVec& grids, const GridRoles& roles,
+        const openvdb::GridBase::ConstPtr& radiosity, openvdb::util::NullInterrupter* interrupt);
+    void setCloud(const openvdb::GridPtrVec& grids, openvdb::util::NullInterrupter* interrupt);
     void setMesh(const TriangleMesh& mesh);
 
     struct Tracer;          // per-thread state: accessors, the level-set intersector
