@@ -66,169 +66,6 @@ arrives(const Emitters& emitters, const SurfacePlanes& planes, VoxelIndex::Acces
     return arrived;
 }
 
-// The patches @a p (normal @a nx) faces: those in room @a room but its own patch @a own whose
-// form factor and weight (form factor times mean exitance) are positive, into the front list of
-// @a ws with their form factors and weights. Returns the weights' total.
-inline double
-gatherFront(const std::vector<EmitterPatch>& patches, const std::vector<uint32_t>& patchRegion,
-    int32_t own, uint32_t room, const Vec3d& p, const Vec3d& nx,
-    DirectLightSampler::Workspace& ws)
-{
-    double total = 0.0;
-    for (size_t g = 0; g < patches.size(); ++g) {
-        if (int32_t(g) == own || patchRegion[g] != room) continue;
-        const double f = patchFormFactor(p, nx, patches[g]);
-        ++ws.factors;
-        if (!(f > 0.0)) continue;
-        const Vec3d& m = patches[g].exitance;
-        const double w = f * (m[0] + m[1] + m[2]) / 3.0;
-        if (!(w > 0.0)) continue;
-        ws.factor[g] = f;
-        ws.weight[g] = w;
-        total += w;
-        ws.front.push_back(uint32_t(g));
-    }
-    return total;
-}
-
-// The k-th point of an R2 sequence (Roberts' additive recurrence, well spread for any k) over
-// the bounding rectangle of @a patch's columns, shifted by (shiftU, shiftV), in its coordinates.
-inline void
-r2Point(const EmitterPatch& patch, double shiftU, double shiftV, size_t k, double& pu,
-    double& pv)
-{
-    const double su = std::fmod(shiftU + 0.7548776662466927 * double(k), 1.0);
-    const double sv = std::fmod(shiftV + 0.5698402909980532 * double(k), 1.0);
-    pu = double(patch.lower[0]) - 0.5 + su * (double(patch.upper[0]) - patch.lower[0] + 1);
-    pv = double(patch.lower[1]) - 0.5 + sv * (double(patch.upper[1]) - patch.lower[1] + 1);
-}
-
-// The shadow rays of one receiver (point @a p, normal @a nx, on voxel @a self) towards its front
-// patches (gatherFront(), in @a ws), whose weights add up to @a total. Stratified points on the
-// patches, in proportion to their weights: sample j at u = (j + xi) / count along the patches'
-// cumulative weight, so consecutive samples stay on one patch and each patch's visible share is
-// a ratio of its own samples. Within a patch, the k-th point is the k-th of an R2 sequence
-// (r2Point()) shifted per voxel (by shiftU, shiftV); a point off the patch weighs nothing.
-struct ShadowSampling
-{
-    const std::vector<EmitterPatch>& patches;
-    const Emitters& emitters;
-    const SurfacePlanes& planes;
-    const openvdb::CoordBBox& box;
-    const Vec3d& p;
-    const Vec3d& nx;
-    size_t self;
-    uint64_t h;             // the voxel's sample hash
-    double total;
-    double shiftU, shiftV;
-    Vec3d origin;           // where the shadow rays start (SurfacePlanes::rayOrigin())
-    DirectLightSampler::Workspace& ws;
-
-    Vec3d estimate(size_t count, bool& mixed);
-    double sampleShares(size_t count, bool& mixed);
-    void dealIncident(double overall);
-};
-
-// The direct light from @a count samples. @a mixed: some ray arrived and some did not (a
-// penumbra).
-inline Vec3d
-ShadowSampling::estimate(size_t count, bool& mixed)
-{
-    const double overall = sampleShares(count, mixed);
-    const std::vector<double>& shares = ws.shares;
-    Vec3d sum(0.0);
-    for (size_t q = 0; q < ws.front.size(); ++q) {
-        const size_t g = ws.front[q];
-        const double v = shares[q] >= 0.0 ? shares[q] : overall;
-        sum += patches[g].exitance * (ws.factor[g] * v);
-    }
-    if (ws.incident) dealIncident(overall);
-    return sum;
-}
-
-// Casts the rays: per front patch, its seen share of the integrand into ws.shares (-1: no sample
-// weighs anything there: none reached it, or all fell off it or behind x), and with an incident
-// list, the rays that arrived into ws.arrivals. Returns the share seen over all samples.
-inline double
-ShadowSampling::sampleShares(size_t count, bool& mixed)
-{
-    double allA = 0.0, allAV = 0.0;
-    size_t at = 0, k = 0;
-    double below = 0.0;         // cumulative weight before patch front[at]
-    double a = 0.0, av = 0.0;   // patch front[at]: sample weights, those seen
-    bool anySeen = false, anyHidden = false;
-    std::vector<double>& shares = ws.shares;
-    shares.assign(ws.front.size(), -1.0);
-    ws.arrivals.clear();
-    for (size_t j = 0; j < count; ++j) {
-        const double u = (double(j) + unitHash(mixHash(h + 3 * j + 3))) / double(count) * total;
-        while (at + 1 < ws.front.size() && u >= below + ws.weight[ws.front[at]]) {
-            if (a > 0.0) shares[at] = av / a;
-            below += ws.weight[ws.front[at]];
-            ++at;
-            k = 0;
-            a = av = 0.0;
-        }
-        const int32_t g = int32_t(ws.front[at]);
-        const EmitterPatch& patch = patches[size_t(g)];
-        double pu, pv;
-        r2Point(patch, shiftU, shiftV, k, pu, pv);
-        ++k;
-        if (!patch.covers(pu, pv)) continue;
-        const Vec3d y = patch.lift(pu, pv);
-        const Vec3d d = y - p;
-        const double r2 = d.lengthSqr();
-        const double cosCos = std::max(0.0, nx.dot(d)) * std::max(0.0, -patch.normal.dot(d));
-        // The integrand over its mean: an unbiased estimate of 1 where all is seen.
-        const double weight = r2 > 0.0
-            ? cosCos / (r2 * r2) * patch.area / (kPi * ws.factor[size_t(g)]) : 0.0;
-        if (!(weight > 0.0)) continue;
-        ++ws.rays;
-        a += weight;
-        allA += weight;
-        if (arrives(emitters, planes, ws.acc, box, uint32_t(self), origin, y, g)) {
-            av += weight;
-            allAV += weight;
-            anySeen = true;
-            if (ws.incident) ws.arrivals.emplace_back(uint32_t(at), d / std::sqrt(r2), weight);
-        } else {
-            anyHidden = true;
-        }
-    }
-    if (a > 0.0) shares[at] = av / a;
-    mixed = anySeen && anyHidden;
-    // A patch no sample weighs on takes the share of all samples.
-    return allA > 0.0 ? allAV / allA : 1.0;
-}
-
-// Where the light comes from, into ws.incident: each patch's light over its arrived samples
-// (arrivals are in front order), by their weights, or from its centre if none arrived.
-inline void
-ShadowSampling::dealIncident(double overall)
-{
-    ws.incident->clear();
-    size_t e = 0;
-    for (size_t q = 0; q < ws.front.size(); ++q) {
-        const size_t g = ws.front[q];
-        const double v = ws.shares[q] >= 0.0 ? ws.shares[q] : overall;
-        const Vec3d light = patches[g].exitance * (ws.factor[g] * v);
-        const size_t first = e;
-        double arrivedWeight = 0.0;
-        for (; e < ws.arrivals.size() && std::get<0>(ws.arrivals[e]) == q; ++e) {
-            arrivedWeight += std::get<2>(ws.arrivals[e]);
-        }
-        if (!(v > 0.0)) continue;
-        if (arrivedWeight > 0.0) {
-            for (size_t k = first; k < e; ++k) {
-                ws.incident->emplace_back(std::get<1>(ws.arrivals[k]),
-                    light * (std::get<2>(ws.arrivals[k]) / arrivedWeight));
-            }
-        } else {
-            ws.incident->emplace_back((patches[g].centre - p).unit(), light);
-        }
-    }
-}
-
 } // namespace
 
 bool
@@ -335,16 +172,124 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
     // A voxel no lamp reaches returns before estimating: it must not pass on the arrivals
     // of the voxel before it.
     if (ws.incident) ws.incident->clear();
+    double total = 0.0;
     const uint32_t room = mRegions ? (*mRegions)[self] : 0;
-    const double total = gatherFront(patches, mPatchRegion, own, room, p, nx, ws);
+    for (size_t g = 0; g < patches.size(); ++g) {
+        if (int32_t(g) == own || mPatchRegion[g] != room) continue;
+        const double f = patchFormFactor(p, nx, patches[g]);
+        ++ws.factors;
+        if (!(f > 0.0)) continue;
+        const Vec3d& m = patches[g].exitance;
+        const double w = f * (m[0] + m[1] + m[2]) / 3.0;
+        if (!(w > 0.0)) continue;
+        ws.factor[g] = f;
+        ws.weight[g] = w;
+        total += w;
+        ws.front.push_back(uint32_t(g));
+    }
     if (!(total > 0.0)) return Vec3d(0.0);
 
-    ShadowSampling rays{patches, mEmitters, mPlanes, mBox, p, nx, self, h, total,
-        unitHash(mixHash(h + 1)), unitHash(mixHash(h + 2)), mPlanes.rayOrigin(self, p), ws};
+    // Stratified points on the patches, in proportion to their weights: sample j at
+    // u = (j + xi) / count along the patches' cumulative weight, so consecutive samples
+    // stay on one patch and each patch's visible share is a ratio of its own samples.
+    // Within a patch, the k-th point is the k-th of an R2 sequence (Roberts' additive
+    // recurrence, well spread for any k) over its columns' bounding rectangle, shifted
+    // per voxel; a point off the patch weighs nothing. @a mixed: some ray arrived and
+    // some did not (a penumbra).
+    const double shiftU = unitHash(mixHash(h + 1)), shiftV = unitHash(mixHash(h + 2));
+    const Vec3d origin = mPlanes.rayOrigin(self, p);
+    auto estimate = [&](size_t count, bool& mixed) {
+        double allA = 0.0, allAV = 0.0;
+        size_t at = 0, k = 0;
+        double below = 0.0;         // cumulative weight before patch front[at]
+        double a = 0.0, av = 0.0;   // patch front[at]: sample weights, those seen
+        bool anySeen = false, anyHidden = false;
+        // Per front patch, its seen share of the integrand; -1: no sample weighs
+        // anything there (none reached it, or all fell off it or behind x).
+        std::vector<double>& shares = ws.shares;
+        shares.assign(ws.front.size(), -1.0);
+        ws.arrivals.clear();
+        for (size_t j = 0; j < count; ++j) {
+            const double u = (double(j) + unitHash(mixHash(h + 3 * j + 3)))
+                / double(count) * total;
+            while (at + 1 < ws.front.size() && u >= below + ws.weight[ws.front[at]]) {
+                if (a > 0.0) shares[at] = av / a;
+                below += ws.weight[ws.front[at]];
+                ++at;
+                k = 0;
+                a = av = 0.0;
+            }
+            const int32_t g = int32_t(ws.front[at]);
+            const EmitterPatch& patch = patches[size_t(g)];
+            const double su = std::fmod(shiftU + 0.7548776662466927 * double(k), 1.0);
+            const double sv = std::fmod(shiftV + 0.5698402909980532 * double(k), 1.0);
+            ++k;
+            const double pu = double(patch.lower[0]) - 0.5
+                + su * (double(patch.upper[0]) - patch.lower[0] + 1);
+            const double pv = double(patch.lower[1]) - 0.5
+                + sv * (double(patch.upper[1]) - patch.lower[1] + 1);
+            if (!patch.covers(pu, pv)) continue;
+            const Vec3d y = patch.lift(pu, pv);
+            const Vec3d d = y - p;
+            const double r2 = d.lengthSqr();
+            const double cosCos =
+                std::max(0.0, nx.dot(d)) * std::max(0.0, -patch.normal.dot(d));
+            // The integrand over its mean: an unbiased estimate of 1 where all is seen.
+            const double weight = r2 > 0.0
+                ? cosCos / (r2 * r2) * patch.area / (kPi * ws.factor[size_t(g)]) : 0.0;
+            if (!(weight > 0.0)) continue;
+            ++ws.rays;
+            a += weight;
+            allA += weight;
+            if (arrives(mEmitters, mPlanes, ws.acc, mBox, uint32_t(self), origin, y, g)) {
+                av += weight;
+                allAV += weight;
+                anySeen = true;
+                if (ws.incident) ws.arrivals.emplace_back(uint32_t(at), d / std::sqrt(r2), weight);
+            } else {
+                anyHidden = true;
+            }
+        }
+        if (a > 0.0) shares[at] = av / a;
+        mixed = anySeen && anyHidden;
+        // A patch no sample weighs on takes the share of all samples.
+        const double overall = allA > 0.0 ? allAV / allA : 1.0;
+        Vec3d sum(0.0);
+        for (size_t q = 0; q < ws.front.size(); ++q) {
+            const size_t g = ws.front[q];
+            const double v = shares[q] >= 0.0 ? shares[q] : overall;
+            sum += patches[g].exitance * (ws.factor[g] * v);
+        }
+        if (ws.incident) {
+            // Each patch's light over its arrived samples (arrivals are in front order).
+            ws.incident->clear();
+            size_t e = 0;
+            for (size_t q = 0; q < ws.front.size(); ++q) {
+                const size_t g = ws.front[q];
+                const double v = shares[q] >= 0.0 ? shares[q] : overall;
+                const Vec3d light = patches[g].exitance * (ws.factor[g] * v);
+                const size_t first = e;
+                double total = 0.0;
+                for (; e < ws.arrivals.size() && std::get<0>(ws.arrivals[e]) == q; ++e) {
+                    total += std::get<2>(ws.arrivals[e]);
+                }
+                if (!(v > 0.0)) continue;
+                if (total > 0.0) {
+                    for (size_t k = first; k < e; ++k) {
+                        ws.incident->emplace_back(std::get<1>(ws.arrivals[k]),
+                            light * (std::get<2>(ws.arrivals[k]) / total));
+                    }
+                } else {
+                    ws.incident->emplace_back((patches[g].centre - p).unit(), light);
+                }
+            }
+        }
+        return sum;
+    };
     bool mixed = false;
-    Vec3d sum = rays.estimate(S, mixed);
+    Vec3d sum = estimate(S, mixed);
     // A penumbra: again with kPenumbra times the rays (the only place rays disagree).
-    if (mixed) sum = rays.estimate(kPenumbra * S, mixed);
+    if (mixed) sum = estimate(kPenumbra * S, mixed);
     return sum;
 }
 
