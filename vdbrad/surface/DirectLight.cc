@@ -66,6 +66,61 @@ arrives(const Emitters& emitters, const SurfacePlanes& planes, VoxelIndex::Acces
     return arrived;
 }
 
+// The patches @a p (normal @a nx) faces: those in room @a room but its own patch @a own whose
+// form factor and weight (form factor times mean exitance) are positive, into the front list of
+// @a ws with their form factors and weights. Returns the weights' total.
+inline double
+gatherFront(const std::vector<EmitterPatch>& patches, const std::vector<uint32_t>& patchRegion,
+    int32_t own, uint32_t room, const Vec3d& p, const Vec3d& nx,
+    DirectLightSampler::Workspace& ws)
+{
+    double total = 0.0;
+    for (size_t g = 0; g < patches.size(); ++g) {
+        if (int32_t(g) == own || patchRegion[g] != room) continue;
+        const double f = patchFormFactor(p, nx, patches[g]);
+        ++ws.factors;
+        if (!(f > 0.0)) continue;
+        const Vec3d& m = patches[g].exitance;
+        const double w = f * (m[0] + m[1] + m[2]) / 3.0;
+        if (!(w > 0.0)) continue;
+        ws.factor[g] = f;
+        ws.weight[g] = w;
+        total += w;
+        ws.front.push_back(uint32_t(g));
+    }
+    return total;
+}
+
+// Where the light at @a p comes from, into ws.incident: each front patch's light over its
+// arrived samples (ws.arrivals, in front order) by their weights, or from its centre if none
+// arrived; a patch no sample weighed on (share -1) takes @a overall.
+inline void
+dealIncident(const std::vector<EmitterPatch>& patches, const Vec3d& p, double overall,
+    DirectLightSampler::Workspace& ws)
+{
+    ws.incident->clear();
+    size_t e = 0;
+    for (size_t q = 0; q < ws.front.size(); ++q) {
+        const size_t g = ws.front[q];
+        const double v = ws.shares[q] >= 0.0 ? ws.shares[q] : overall;
+        const Vec3d light = patches[g].exitance * (ws.factor[g] * v);
+        const size_t first = e;
+        double total = 0.0;
+        for (; e < ws.arrivals.size() && std::get<0>(ws.arrivals[e]) == q; ++e) {
+            total += std::get<2>(ws.arrivals[e]);
+        }
+        if (!(v > 0.0)) continue;
+        if (total > 0.0) {
+            for (size_t k = first; k < e; ++k) {
+                ws.incident->emplace_back(std::get<1>(ws.arrivals[k]),
+                    light * (std::get<2>(ws.arrivals[k]) / total));
+            }
+        } else {
+            ws.incident->emplace_back((patches[g].centre - p).unit(), light);
+        }
+    }
+}
+
 } // namespace
 
 bool
@@ -172,21 +227,8 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
     // A voxel no lamp reaches returns before estimating: it must not pass on the arrivals
     // of the voxel before it.
     if (ws.incident) ws.incident->clear();
-    double total = 0.0;
     const uint32_t room = mRegions ? (*mRegions)[self] : 0;
-    for (size_t g = 0; g < patches.size(); ++g) {
-        if (int32_t(g) == own || mPatchRegion[g] != room) continue;
-        const double f = patchFormFactor(p, nx, patches[g]);
-        ++ws.factors;
-        if (!(f > 0.0)) continue;
-        const Vec3d& m = patches[g].exitance;
-        const double w = f * (m[0] + m[1] + m[2]) / 3.0;
-        if (!(w > 0.0)) continue;
-        ws.factor[g] = f;
-        ws.weight[g] = w;
-        total += w;
-        ws.front.push_back(uint32_t(g));
-    }
+    const double total = gatherFront(patches, mPatchRegion, own, room, p, nx, ws);
     if (!(total > 0.0)) return Vec3d(0.0);
 
     // Stratified points on the patches, in proportion to their weights: sample j at
@@ -260,30 +302,7 @@ DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
             const double v = shares[q] >= 0.0 ? shares[q] : overall;
             sum += patches[g].exitance * (ws.factor[g] * v);
         }
-        if (ws.incident) {
-            // Each patch's light over its arrived samples (arrivals are in front order).
-            ws.incident->clear();
-            size_t e = 0;
-            for (size_t q = 0; q < ws.front.size(); ++q) {
-                const size_t g = ws.front[q];
-                const double v = shares[q] >= 0.0 ? shares[q] : overall;
-                const Vec3d light = patches[g].exitance * (ws.factor[g] * v);
-                const size_t first = e;
-                double total = 0.0;
-                for (; e < ws.arrivals.size() && std::get<0>(ws.arrivals[e]) == q; ++e) {
-                    total += std::get<2>(ws.arrivals[e]);
-                }
-                if (!(v > 0.0)) continue;
-                if (total > 0.0) {
-                    for (size_t k = first; k < e; ++k) {
-                        ws.incident->emplace_back(std::get<1>(ws.arrivals[k]),
-                            light * (std::get<2>(ws.arrivals[k]) / total));
-                    }
-                } else {
-                    ws.incident->emplace_back((patches[g].centre - p).unit(), light);
-                }
-            }
-        }
+        if (ws.incident) dealIncident(patches, p, overall, ws);
         return sum;
     };
     bool mixed = false;
