@@ -20,6 +20,7 @@
 
 namespace {
 
+using namespace vdbrad;
 using namespace vdbrad::cli;
 
 std::vector<std::string>

@@ -4,6 +4,8 @@
 #include "Progress.h"
 #include "ToolSupport.h"
 
+#include "vdbrad/request/SharedOptions.h"
+
 #include "vdbrad/vdbrad.h"
 
 #include <algorithm>
@@ -99,7 +101,7 @@ int
 runInfo(const Arguments& a)
 {
     const std::string in = a.positional()[0];
-    const SceneOptions options = sceneOptions(a);
+    const SceneOptions options = options::sceneOptions(a.request());
     const VdbFile file = readInput(in);
     const std::string label = inputLabel(in);
     describeGrids(std::cout, label, file);
@@ -215,7 +217,7 @@ int
 runSurface(const Arguments& a)
 {
     const std::string in = a.positional()[0], out = a.positional()[1];
-    const SceneOptions options = sceneOptions(a);
+    const SceneOptions options = options::sceneOptions(a.request());
     checkOutput(out, {in}, a.flag("overwrite"));
     const VdbFile file = readInput(in);
     const std::string label = inputLabel(in);

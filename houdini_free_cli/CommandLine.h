@@ -1,15 +1,18 @@
 // CommandLine: the one table that declares every command of the `vdbrad` tool.
 //
-// Names, one-line docs, positional arguments and options {name, default, example, doc, choices or
-// range} live in a single table (Commands.cc). Parsing, `--help`, "did you mean" suggestions and
+// Names, one-line docs and positional arguments live in a single table (Commands.cc); the options
+// {name, default, example, doc, choices or range} of the commands the library serves (solve,
+// solve-cloud, voxelize, render) are the library's (vdbrad/request/), the same the Python module
+// takes. Parsing, `--help`, "did you mean" suggestions and
 // the command table of docs/command-line.md (`vdbrad help --markdown`) are all generated from it,
 // so they cannot drift. The whole command line is parsed, type-checked and range-checked before
 // any heavy work starts: a typo or a value out of range fails in milliseconds and leaves no
 // output. This file knows nothing of OpenVDB (it compiles fast).
 #pragma once
 
+#include "vdbrad/request/Request.h"
+
 #include <functional>
-#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -32,41 +35,6 @@ public:
     using std::runtime_error::runtime_error;
 };
 
-/// Int: a whole number that fits an int. Float: a finite number that fits a float (most options
-/// end up in floats; the commands read them as doubles).
-enum class OptionType { Flag, Int, Float, String };
-
-struct OptionSpec
-{
-    std::string name;          ///< without the leading dashes
-    OptionType type;
-    std::string defaultValue;  ///< as shown in help; empty: none
-    std::string example;       ///< a typical value, shown in help
-    std::string doc;           ///< one line, with units; help adds the choices and the range
-    /// The only values accepted (String or Int options); empty: any.
-    std::vector<std::string> choices;
-    /// The range of Int and Float values: [min, max], an exclusive end open.
-    double min, max;
-    bool minExclusive = false, maxExclusive = false;
-
-    OptionSpec(std::string name, OptionType type, std::string defaultValue, std::string example,
-        std::string doc);
-
-    // Validation the parser does itself, so a bad value fails before any command runs:
-    // OptionSpec{...}.oneOf({"naive", "standard"}), OptionSpec{...}.within(1, 4096).
-    OptionSpec oneOf(std::vector<std::string> values) const;
-    OptionSpec atLeast(double lo) const;  ///< value >= lo
-    OptionSpec above(double lo) const;    ///< value > lo
-    OptionSpec atMost(double hi) const;   ///< value <= hi
-    OptionSpec below(double hi) const;    ///< value < hi
-    OptionSpec within(double lo, double hi) const { return atLeast(lo).atMost(hi); }
-
-    /// The valid values in words ("naive or standard", "in [1, 4096]", ">= 0"); empty: any.
-    std::string validValues() const;
-    /// True if @a value (a number already parsed, for Int and Float) is valid.
-    bool accepts(const std::string& value) const;
-};
-
 class Arguments;
 
 struct CommandSpec
@@ -80,24 +48,26 @@ struct CommandSpec
     std::function<int(const Arguments&)> run;
 };
 
-/// Parsed, type-checked arguments of one command.
+/// Parsed, type-checked arguments of one command: its positional arguments and its options
+/// as a Request (read with the request's getters: a value given, else the default).
 class Arguments
 {
 public:
+    explicit Arguments(const CommandSpec& command);
     const CommandSpec& command() const { return *mCommand; }
     const std::vector<std::string>& positional() const { return mPositional; }
-    bool has(const std::string& name) const;         ///< given on the command line
-    bool flag(const std::string& name) const;
-    int getInt(const std::string& name) const;        ///< given value, else the default
-    double getFloat(const std::string& name) const;
-    std::string getString(const std::string& name) const;
+    const Request& request() const { return mRequest; }
+    bool has(const std::string& name) const { return mRequest.has(name); }
+    bool flag(const std::string& name) const { return mRequest.flag(name); }
+    int getInt(const std::string& name) const { return mRequest.getInt(name); }
+    double getFloat(const std::string& name) const { return mRequest.getFloat(name); }
+    std::string getString(const std::string& name) const { return mRequest.getString(name); }
 
 private:
     friend Arguments parseCommand(const CommandSpec&, const std::vector<std::string>&);
-    const CommandSpec* mCommand = nullptr;
+    const CommandSpec* mCommand;
     std::vector<std::string> mPositional;
-    std::map<std::string, std::string> mValues;
-    const OptionSpec& spec(const std::string& name) const;
+    Request mRequest;
 };
 
 /// @brief Parse @a args (after the command name) against @a command.
@@ -105,10 +75,6 @@ private:
 /// @throw UsageError with a suggestion for unknown options, missing values, bad numbers, values
 ///        outside an option's choices or range, wrong positional counts
 Arguments parseCommand(const CommandSpec& command, const std::vector<std::string>& args);
-
-/// The closest of @a candidates to @a word, if it is close enough to be a likely typo.
-std::optional<std::string> suggest(const std::string& word,
-    const std::vector<std::string>& candidates);
 
 /// Full help text of one command.
 std::string commandHelp(const CommandSpec& command);

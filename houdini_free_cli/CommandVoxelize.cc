@@ -1,8 +1,10 @@
-// `vdbrad voxelize`: an OBJ or PLY mesh into a surface scene (vdbrad/mesh/Voxelizer.h).
+// `vdbrad voxelize`: an OBJ or PLY mesh into a surface scene (vdbrad/mesh/Voxelizer.h; its
+// options: vdbrad/request/VoxelizeRequest.h).
 #include "Commands.h"
 #include "Progress.h"
 #include "ToolSupport.h"
 
+#include "vdbrad/request/VoxelizeRequest.h"
 #include "vdbrad/vdbrad.h"
 
 #include <iostream>
@@ -15,16 +17,7 @@ int
 runVoxelize(const Arguments& a)
 {
     const std::string in = a.positional()[0], out = a.positional()[1];
-    VoxelizeOptions o;
-    if (a.has("voxel-size")) {
-        if (a.has("res")) throw UsageError("give --voxel-size or --res, not both");
-        o.voxelSize = a.getFloat("voxel-size");
-    }
-    o.resolution = a.getInt("res");
-    o.separation = a.getInt("separation");
-    o.defaultAlbedo = float(a.getFloat("albedo"));
-    o.keepSdf = a.flag("keep-sdf");
-    o.specular = !a.flag("no-specular");
+    const VoxelizeOptions o = voxelizeOptions(a.request());
     if (isStdin(in)) {
         throw UsageError("the mesh must be a file (its MTL files are found beside it)");
     }
@@ -41,17 +34,9 @@ runVoxelize(const Arguments& a)
         }
     }();
     progress.end(std::to_string(mesh.triangles.size()) + " triangles");
-    // The reader's warnings start with the file and line, as its errors do.
-    for (const std::string& w : mesh.warnings) std::cerr << "vdbrad: warning: " << w << "\n";
-    for (const Material& m : mesh.materials) {
-        if (o.specular && m.reflectance() > 1.f) {
-            std::ostringstream os;
-            os.precision(4);
-            os << "material '" << m.name << "': Kd + Ks = " << m.reflectance()
-               << " > 1, both scaled by 1/" << m.reflectance() << " (a surface reflects no "
-               << "more light than it receives; --no-specular: Kd alone)";
-            warn(in, os.str());
-        }
+    // Each starts with the file (and line), as the reader's errors do.
+    for (const std::string& w : meshWarnings(mesh, in, o, a.request())) {
+        std::cerr << "vdbrad: warning: " << w << "\n";
     }
     VdbFile file;
     std::vector<std::string> warnings;
@@ -63,8 +48,8 @@ runVoxelize(const Arguments& a)
                   << " surface voxels, voxel size " << normal->voxelSize()[0] << ", "
                   << o.separation << "-separating\n";
     }
-    if (!findGrid(file.grids, names::kEmission)) {
-        warn(in, "nothing emits (no MTL material with Ke > 0): the scene will be dark");
+    for (const std::string& w : sceneWarnings(file.grids, in)) {
+        std::cerr << "vdbrad: warning: " << w << "\n";
     }
     setCreator(file);
     writeOutput(file, out);

@@ -2,18 +2,14 @@
 
 #include "ToolSupport.h"
 
-#include "vdbrad/core/ProcessInfo.h"
 #include "vdbrad/distribute/Distribution.h"
+#include "vdbrad/request/SurfaceRequest.h"
 #include "vdbrad/scene/OutputGrids.h"
 
-#include <cctype>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <malloc.h>
-#include <unistd.h>
 
-#include <fstream>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -21,114 +17,32 @@
 namespace vdbrad {
 namespace cli {
 
-int
-workerThreads()
-{
-    return int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
-}
+namespace {
 
-std::unique_ptr<tbb::global_control>
-threadLimit(const Arguments& a)
+// A checkpoint is a file of its own: not the input or output, not a standard stream.
+const std::string&
+checkpointFiles(const Arguments& a, const std::string& in, const std::string& out)
 {
-    const int threads = a.getInt("threads");
-    if (threads == 0) return nullptr;
-    return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-        size_t(threads));
-}
-
-double
-heldBytes(double fallback)
-{
-    const double resident = residentBytes();
-    return resident > 0.0 ? resident : fallback;
-}
-
-size_t
-fileBytes(const VdbFile& file)
-{
-    size_t bytes = 0;
-    for (const auto& g : file.grids) bytes += size_t(g->memUsage());
-    return bytes;
-}
-
-double
-parseBytes(const std::string& option, const std::string& text, bool zero)
-{
-    char* end = nullptr;
-    double v = std::strtod(text.c_str(), &end);
-    std::string unit(end ? end : "");
-    if (!unit.empty() && (unit.back() == 'B' || unit.back() == 'b')) unit.pop_back();
-    if (unit.size() > 1 && (unit.back() == 'i' || unit.back() == 'I')) unit.pop_back();
-    const std::string units = "KMGT";
-    if (unit.size() == 1 && units.find(char(std::toupper(unit[0]))) != std::string::npos) {
-        v *= std::pow(1024.0, double(units.find(char(std::toupper(unit[0]))) + 1));
-    } else if (!unit.empty()) {
-        v = -1.0;
-    }
-    if (end == text.c_str() || !(v > 0.0 || (zero && v == 0.0)) || !std::isfinite(v)) {
-        throw UsageError("--" + option + ": '" + text + "' is not a size (e.g. 8G, 512M, "
-            "1000000" + (zero ? ", 0" : "") + ")");
-    }
-    return v;
-}
-
-double
-memoryLimit(const Arguments& a)
-{
-    if (!a.has("max-memory")) {
-        // Ranks started on one machine share its memory (each would otherwise plan for 3/4
-        // of it, the visibility cache's auto budget included, and together run out).
-        const double physical = physicalMemory();
-        return physical > 0.0 ? 0.75 * physical / double(job().localRanks())
-                              : 1e300;
-    }
-    return parseBytes("max-memory", a.getString("max-memory"), false);
-}
-
-std::string
-checkMemory(const Arguments& a, const std::string& label, double held, double solver)
-{
-    const double limit = memoryLimit(a), peak = held + solver;
-    if (peak > limit) {
-        throw UserError(label + ": the solve needs about " + formatBytes(peak)
-            + " of memory, over the " + formatBytes(limit) + " allowed (--max-memory; fewer "
-            "voxels or directions, or no --accelerate, need less)");
-    }
-    return "memory: about " + formatBytes(peak) + " at peak (held now " + formatBytes(held)
-        + ", solver " + formatBytes(solver) + "; limit " + formatBytes(limit) + ")\n";
-}
-
-Checkpointing::Checkpointing(const Arguments& a, const std::string& in, const std::string& out)
-{
-    if (a.has("checkpoint")) save = a.getString("checkpoint");
-    if (a.has("resume")) resume = a.getString("resume");
-    every = a.getInt("checkpoint-every");
-    if (a.has("checkpoint") && save.empty()) throw UsageError("--checkpoint needs a file");
-    if (a.has("resume") && resume.empty()) throw UsageError("--resume needs a file");
-    if (a.has("checkpoint-every") && save.empty()) {
-        throw UsageError("--checkpoint-every needs --checkpoint FILE");
-    }
-    for (const std::string& f : {save, resume}) {
+    for (const char* option : {"checkpoint", "resume"}) {
+        const std::string f = a.getString(option);
         if (!f.empty() && (f == in || f == out || isStdin(f) || isStdout(f))) {
             throw UsageError("a checkpoint must be its own file, not '" + f + "'");
         }
     }
+    return in;
 }
 
-void
-Checkpointing::finish() const
-{
-    if (!save.empty()) std::remove(save.c_str());
-}
+} // namespace
 
 SolveSession::SolveSession(const Arguments& a, const std::string& in, const std::string& out)
-    : mCheckpoints(a, in, out)
-    , mThreads((memoryLimit(a), threadLimit(a)))   // a bad --max-memory fails before any work
+    : mArgs(a)
+    , mThreads((checkpointFiles(a, in, out), threadLimit(a.request())))
     , mFile((checkOutput(out, {in}, a.flag("overwrite")), readInput(in)))
     , mLabel(inputLabel(in))
     // Under mpirun rank 0 alone prints, saves checkpoints and writes the output.
     , mQuiet(a.flag("quiet") || job().rank() != 0)
     , mProgress(mQuiet)
+    , mEta(a.getFloat("tolerance"), a.getInt("iterations"))
 {
 }
 
@@ -136,9 +50,6 @@ SolveControl
 SolveSession::control(const std::string& preface)
 {
     SolveControl c;
-    if (job().rank() == 0) c.checkpoint = mCheckpoints.save;
-    c.checkpointEvery = mCheckpoints.every;
-    c.resume = mCheckpoints.resume;
     auto first = std::make_shared<bool>(true);
     c.note = [quiet = mQuiet, preface, first](const std::string& line) {
         if (quiet) return;
@@ -146,18 +57,28 @@ SolveSession::control(const std::string& preface)
         *first = false;
     };
     c.beforeIteration = [this](int k) {
+        mIterationStart = std::chrono::steady_clock::now();
         mProgress.start(("iteration " + std::to_string(k)).c_str());
     };
-    c.afterIteration = [this](int, double residual) {
+    c.afterIteration = [this](int k, double residual) {
+        const std::chrono::duration<double> took =
+            std::chrono::steady_clock::now() - mIterationStart;
+        mEta.add(k, residual, took.count());
         std::ostringstream result;
         result << "residual " << residual;
+        // Seconds are worth saying only when they are there to wait.
+        if (const auto left = mEta.secondsLeft(); left && *left >= 1.0) {
+            result << " (about " << std::llround(*left) << " s left)";
+        }
         mProgress.end(result.str());
     };
-    c.stopped = [this](int, double residual, bool converged) {
-        mOutcome.converged = converged;
-        mOutcome.residual = residual;
-    };
     return c;
+}
+
+void
+SolveSession::warn(const std::vector<std::string>& warnings)
+{
+    for (; mWarned < warnings.size(); ++mWarned) cli::warn(mLabel, warnings[mWarned]);
 }
 
 void
@@ -172,13 +93,10 @@ SolveSession::releaseInput()
 }
 
 void
-SolveSession::finish(const openvdb::GridPtrVec& results, const std::string& out,
-    int maxIterations)
+SolveSession::finish(const SolveResult& result, const std::string& out)
 {
-    if (!mQuiet && !mOutcome.converged) {
-        warn(mLabel, "stopped at --iterations " + std::to_string(maxIterations)
-            + " with residual " + std::to_string(mOutcome.residual) + " > --tolerance");
-    }
+    warn(result.warnings);
+    if (!mQuiet && !result.converged) cli::warn(mLabel, stoppedShort(result, mArgs.request()));
     const Distribution& ranks = job();
     if (ranks.rank() != 0) return;
     if (ranks.distributed() && !mQuiet) {
@@ -188,11 +106,11 @@ SolveSession::finish(const openvdb::GridPtrVec& results, const std::string& out,
              << " s\n";
         std::cerr << line.str();
     }
-    for (const openvdb::GridBase::Ptr& grid : results) {
+    for (const openvdb::GridBase::Ptr& grid : result.grids) {
         grid->insertMeta(meta::kRanks, openvdb::Int32Metadata(ranks.ranks()));
     }
-    writeOutput(withGrids(mFile, results), out);
-    mCheckpoints.finish();
+    writeOutput(withGrids(mFile, result.grids), out);
+    if (mArgs.has("checkpoint")) std::remove(mArgs.getString("checkpoint").c_str());
 }
 
 } // namespace cli

@@ -121,39 +121,6 @@ describeReading(const Arguments& a, const std::string& label, const VdbFile& fil
     for (const std::string& n : notes) std::cerr << "vdbrad: " << label << ": " << n << "\n";
 }
 
-std::vector<double>
-numberList(const Arguments& a, const char* option, size_t count, const char* shape)
-{
-    const std::string text = a.getString(option);
-    std::vector<double> values;
-    std::istringstream is(text);
-    for (std::string item; std::getline(is, item, ',');) {
-        char* end = nullptr;
-        const double v = std::strtod(item.c_str(), &end);
-        if (item.empty() || *end != '\0' || !std::isfinite(v)) {
-            throw UsageError("--" + std::string(option) + ": '" + item
-                + "' is not a number (expected " + shape + ")");
-        }
-        values.push_back(v);
-    }
-    if (count == 0 ? values.empty() : values.size() != count) {
-        throw UsageError("--" + std::string(option) + " needs "
-            + (count ? std::to_string(count) + " " : "") + "comma-separated numbers (" + shape
-            + "), got '" + text + "'");
-    }
-    return values;
-}
-
-SceneOptions
-sceneOptions(const Arguments& a)
-{
-    SceneOptions o;
-    o.surface = a.getString("surface");
-    o.defaultAlbedo = float(a.getFloat("albedo"));
-    o.separation = a.getInt("separation");
-    o.defaultRoughness = float(a.getFloat("roughness"));
-    return o;
-}
 
 } // namespace cli
 } // namespace vdbrad

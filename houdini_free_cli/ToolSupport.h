@@ -74,22 +74,14 @@ forFile(const std::string& label, F&& f) -> decltype(f())
         throw;
     } catch (const UsageError&) {
         throw;
+    } catch (const OptionError&) {
+        throw;   // a command-line mistake found once the input was read (exit status 2)
     } catch (const std::exception& e) {
         throw UserError(label + ": " + errorMessage(e));
     }
 }
 
-// ---- numbers (withCommas and formatBytes: vdbrad/core/TextFormat.h) -------------------------------
-
-/// @brief "a,b,c" -> exactly @a count finite numbers (count 0: one or more).
-/// @throw UsageError naming @a option and the expected @a shape
-std::vector<double> numberList(const Arguments& a, const char* option, size_t count,
-    const char* shape);
-
-// ---- options -----------------------------------------------------------------------------------
-
-/// --surface, --albedo and --separation (ranges checked by the option table).
-SceneOptions sceneOptions(const Arguments& a);
+// ---- options (each command's own: vdbrad/request/) -------------------------------------------
 
 /// @brief The value of the choice option @a name, mapped through @a values.
 /// The table has checked the word; a word of its choices missing here is a programming error.

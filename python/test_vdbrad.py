@@ -78,7 +78,7 @@ class Furnace(unittest.TestCase):
 
     def test_render_from_inside_sees_the_furnace_radiosity(self):
         c = (self.n - 1) / 2 / self.n   # the box's centre, world units
-        image = vdbrad.render(self.lit, width=64, height=48,
+        image = vdbrad.render(self.lit, res=(64, 48),
                               camera=((c, c, c), (c, c, 1.0), (0, 1, 0), 60))
         self.assertEqual(image.shape, (48, 64, 3))
         self.assertEqual(image.dtype, np.float32)
@@ -88,7 +88,7 @@ class Furnace(unittest.TestCase):
         self.assertLess(float(np.max(np.abs(image - 2.0))), 1e-4)
 
     def test_render_from_outside_frames_the_box(self):
-        image = vdbrad.render(self.lit, width=40, height=30, background=(0.25, 0.5, 0.75))
+        image = vdbrad.render(self.lit, res="40x30", background=(0.25, 0.5, 0.75))
         self.assertEqual(image.shape, (30, 40, 3))
         # The corner pixels see the background, the centre the box's front wall (whose voxels
         # face inwards: the renderer shows their own radiosity, 2).
@@ -129,6 +129,135 @@ class Interrupt(unittest.TestCase):
         self.assertEqual(lit[-1].name, "radiosity")
 
 
+class Options(unittest.TestCase):
+    """Each function's keywords are the tool's options of its command, from one table."""
+
+    # The tool's own: what it prints on stderr and whether it may replace a file. Python's own:
+    # render's exr, where the tool takes OUT.exr as an argument.
+    TOOL_ONLY = {"verbose", "overwrite", "quiet"}
+    PYTHON_ONLY = {"render": {"exr"}}
+
+    @staticmethod
+    def tool_options():
+        """{command: {option: default}} from `vdbrad help --markdown` (docs/command-line.md)."""
+        text = subprocess.run([os.environ["VDBRAD_TOOL"], "help", "--markdown"],
+                              capture_output=True, text=True, check=True).stdout
+        commands, current = {}, None
+        for line in text.splitlines():
+            if line.startswith("### `vdbrad "):
+                current = commands.setdefault(line.split()[2], {})
+            elif line.startswith("| `--") and current is not None:
+                cells = [c.strip() for c in line.split(" | ")]
+                current[cells[0].strip("|` -").replace("-", "_")] = cells[2].strip("`")
+        return commands
+
+    def test_keywords_are_the_tools_options(self):
+        import inspect
+        tool = self.tool_options()
+        for function, command in (("solve", "solve"), ("solve_cloud", "solve-cloud"),
+                                  ("voxelize", "voxelize"), ("render", "render")):
+            parameters = inspect.signature(getattr(vdbrad, function)).parameters
+            keywords = {name: p.default for name, p in parameters.items()
+                        if p.kind == p.KEYWORD_ONLY}
+            expected = set(tool[command]) - self.TOOL_ONLY
+            self.assertEqual(set(keywords) - self.PYTHON_ONLY.get(function, set()), expected,
+                             function)
+            self.assertGreater(len(expected), 5)
+            for name in expected:
+                given, shown = keywords[name], tool[command][name]
+                if given is None or given is False:
+                    continue   # no default, one described in words, or a flag
+                if isinstance(given, str):
+                    self.assertEqual(given, shown, f"{function}({name}=...)")
+                else:
+                    self.assertEqual(given, float(shown), f"{function}({name}=...)")
+            # The docstring carries each keyword's help.
+            for name in expected:
+                self.assertIn(f"  {name}: ", getattr(vdbrad, function).__doc__)
+
+    def test_values_read_as_the_tool_reads_them(self):
+        grids = furnace_box(6, 0.5, 1.0)
+        # A tuple, a list and the tool's text are one value; NumPy numbers are numbers.
+        a = vdbrad.render(vdbrad.solve(grids, directions=np.int64(40)), res=(8, 6),
+                          background=[0, 0, 0])
+        b = vdbrad.render(vdbrad.solve(grids, directions="40"), res="8x6", background="0,0,0")
+        np.testing.assert_array_equal(a, b)
+        with self.assertRaisesRegex(ValueError, "option directions: '4.5' is not an integer"):
+            vdbrad.solve(grids, directions=4.5)
+        with self.assertRaisesRegex(TypeError, "keep_sdf must be True or False"):
+            vdbrad.voxelize("x.obj", keep_sdf=1)
+
+
+class Checkpoints(unittest.TestCase):
+    def test_interrupted_solve_resumes_bit_identically(self):
+        # Albedo 0.9999 and no tolerance: each iteration ~10 ms, for hours. Ctrl-C once the
+        # first checkpoint exists; the resumed solve then ends where an uninterrupted one does.
+        grids = furnace_box(24, 0.9999, 1.0)
+        options = dict(directions=300, tolerance=0, visibility_cache=0)
+        with self.assertWarnsRegex(UserWarning, "stopped at iterations 200 with residual"):
+            reference = active_values(vdbrad.solve(grids, iterations=200, **options)[-1])
+        with tempfile.TemporaryDirectory() as folder:
+            ck = os.path.join(folder, "state.ckpt")
+
+            def interrupt_once_saved():
+                while not os.path.exists(ck):
+                    time.sleep(0.001)
+                os.kill(os.getpid(), signal.SIGINT)
+
+            previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+            watcher = threading.Thread(target=interrupt_once_saved)
+            watcher.start()
+            try:
+                with self.assertRaises(KeyboardInterrupt):
+                    vdbrad.solve(grids, iterations=1000000, checkpoint=ck, checkpoint_every=2,
+                                 **options)
+            finally:
+                watcher.join()
+                signal.signal(signal.SIGINT, previous)
+            self.assertTrue(os.path.exists(ck))
+            with self.assertWarnsRegex(UserWarning, "stopped at iterations 200"):
+                resumed = vdbrad.solve(grids, iterations=200, resume=ck, **options)
+            self.assertEqual(resumed[-1]["vdbrad:iterations"], 200)
+            np.testing.assert_array_equal(active_values(resumed[-1]), reference)
+            # Resuming a checkpoint of other options is refused, naming the file.
+            with self.assertRaisesRegex(OSError, "state.ckpt"):
+                vdbrad.solve(grids, iterations=200, resume=ck, directions=100, tolerance=0)
+            # A finished solve removes the checkpoint it kept.
+            with self.assertWarnsRegex(UserWarning, "stopped at iterations 4"):
+                vdbrad.solve(grids, iterations=4, checkpoint=ck, **options)
+            self.assertFalse(os.path.exists(ck))
+
+
+def mpi_child(spread, out):
+    """Run by each rank under mpirun (Distributed): solve a furnace box shared by the ranks;
+    rank 0 saves the radiosity."""
+    lit = vdbrad.solve(furnace_box(16, 0.7, 1.0), directions=100, iterations=6, tolerance=0,
+                       visibility_cache=0, distribute=spread)
+    if os.environ.get("OMPI_COMM_WORLD_RANK", "0") == "0":
+        np.save(out, active_values(lit[-1]))
+
+
+@unittest.skipUnless(os.environ.get("VDBRAD_MPIEXEC"), "built without MPI")
+class Distributed(unittest.TestCase):
+    def test_ranks_give_the_serial_bits(self):
+        # The module joins the MPI job at import: every rank runs the script, each sweeps its
+        # share (directions) or its slab (slabs), rank 0 gets the whole result.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # stopped at the cap: tolerance 0
+            serial = active_values(vdbrad.solve(furnace_box(16, 0.7, 1.0), directions=100,
+                                                iterations=6, tolerance=0, visibility_cache=0)[-1])
+        for spread in ("directions", "slabs"):
+            with tempfile.TemporaryDirectory() as folder:
+                out = os.path.join(folder, "b.npy")
+                done = subprocess.run(
+                    [os.environ["VDBRAD_MPIEXEC"], "--oversubscribe", "--allow-run-as-root",
+                     "-np", "2", sys.executable, "-W", "ignore", os.path.abspath(__file__),
+                     "--mpi-child", spread, out],
+                    capture_output=True, text=True, timeout=120)
+                self.assertEqual(done.returncode, 0, done.stderr)
+                np.testing.assert_array_equal(np.load(out), serial, spread)
+
+
 class Module(unittest.TestCase):
     def test_import_before_pyopenvdb(self):
         # A fresh interpreter importing vdbrad first (it imports pyopenvdb itself).
@@ -161,9 +290,16 @@ class Errors(unittest.TestCase):
 
     def test_bad_option(self):
         grids = furnace_box(4, 0.5, 1.0)
-        with self.assertRaisesRegex(ValueError, "update must be one of jacobi, inplace, "
+        with self.assertRaisesRegex(ValueError, "update must be jacobi, inplace or "
                                                 "progressive, got 'bogus'"):
             vdbrad.solve(grids, update="bogus")
+        with self.assertRaisesRegex(TypeError, "unexpected keyword argument 'direction'; did "
+                                               "you mean 'directions'"):
+            vdbrad.solve(grids, direction=10)
+        with self.assertRaisesRegex(ValueError, "checkpoint_every needs checkpoint FILE"):
+            vdbrad.solve(grids, checkpoint_every=3)
+        with self.assertRaisesRegex(MemoryError, "max_memory"):
+            vdbrad.solve(grids, max_memory="1K")
         with self.assertRaisesRegex(ValueError, "albedo"):
             vdbrad.solve(grids[:1], albedo=1.5)
 
@@ -173,7 +309,7 @@ class Errors(unittest.TestCase):
 
     def test_render_before_solve(self):
         with self.assertRaisesRegex(ValueError, "solve"):
-            vdbrad.render(furnace_box(4, 0.5, 1.0), width=8, height=8)
+            vdbrad.render(furnace_box(4, 0.5, 1.0), res=(8, 8))
 
 
 CUBE_OBJ = """mtllib cube.mtl
@@ -271,4 +407,7 @@ class SolveCloud(unittest.TestCase):
 
 
 if __name__ == "__main__":
-    unittest.main(verbosity=2)
+    if len(sys.argv) == 4 and sys.argv[1] == "--mpi-child":
+        mpi_child(sys.argv[2], sys.argv[3])
+    else:
+        unittest.main(verbosity=2)

@@ -12,7 +12,7 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 # Levels, bottom first; a folder may include a folder of a strictly lower level.
 declare -A level=(
   [core]=0 [distribute]=1 [sweep]=2 [scene]=3 [glossy]=4 [cloud]=4
-  [mesh]=5 [surface]=5 [reference]=6 [render]=6)
+  [mesh]=5 [surface]=5 [reference]=6 [render]=6 [request]=7)
 
 check() {
   local root=$1 bad=0 file folder line target

@@ -1,6 +1,6 @@
 // vdbrad: voxel radiosity on sparse OpenVDB grids (Chatelier & Malgouyres, 2006).
 // Umbrella header: the scene contract, I/O, meshes and the voxelizer, the solvers (surface
-// radiosity, clouds, the Monte Carlo reference), output grids and the renderer. These headers
+// radiosity, clouds, the Monte Carlo reference), output grids and the renderer, and the requests hosts describe each command with. These headers
 // and the ones they include are the installed API; the sweep internals (SweepSchedule,
 // LineSweep, the vector clones, the visibility cache, ...) are not installed.
 #pragma once
@@ -20,6 +20,10 @@
 #include "vdbrad/reference/MonteCarloSolver.h"
 #include "vdbrad/render/ImageIO.h"
 #include "vdbrad/render/Renderer.h"
+#include "vdbrad/request/CloudRequest.h"
+#include "vdbrad/request/RenderRequest.h"
+#include "vdbrad/request/SurfaceRequest.h"
+#include "vdbrad/request/VoxelizeRequest.h"
 #include "vdbrad/scene/Cloud.h"
 #include "vdbrad/scene/OutputGrids.h"
 #include "vdbrad/scene/Scene.h"
