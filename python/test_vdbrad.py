@@ -267,9 +267,11 @@ class Module(unittest.TestCase):
         self.assertEqual(done.returncode, 0, done.stderr)
         self.assertTrue(done.stdout.strip().endswith("True"))
 
-    def test_warning_nothing_emits(self):
-        with self.assertWarnsRegex(UserWarning, "nothing emits: the scene is dark"):
-            lit = vdbrad.solve(furnace_box(4, 0.5, 0.0), directions=20)
+    def test_unlit_scene_is_refused(self):
+        with self.assertRaisesRegex(ValueError, "nothing lights the scene: .* no sun or sky"):
+            vdbrad.solve(furnace_box(4, 0.5, 0.0), directions=20)
+        # A sky lights it (from outside: the box's walls face inwards, so none of it enters).
+        lit = vdbrad.solve(furnace_box(4, 0.5, 0.0), directions=20, sky=1.0)
         self.assertEqual(active_values(lit[-1]).max(), 0.0)
 
 

@@ -1122,8 +1122,8 @@ TEST_F(CliTest, VoxelizeFindsOrDoesWithoutTheMtlAndKeepsTheLight)
     EXPECT_EQ(dark.errLines(), (std::vector<std::string>{
         "vdbrad: warning: nomtl.obj:1: material library 'missing.mtl' not found: its materials "
         "get albedo 0.5 and no emission",
-        "vdbrad: warning: nomtl.obj: nothing emits (no MTL material with Ke > 0): the scene will "
-        "be dark"}));
+        "vdbrad: warning: nomtl.obj: nothing emits (no MTL material with Ke > 0): light it with "
+        "solve's --sun or --sky"}));
     const VdbFile d = readVdbFile(path("dark.vdb"));
     const auto albedo = openvdb::gridConstPtrCast<openvdb::FloatGrid>(findGrid(d.grids, "albedo"));
     ASSERT_TRUE(albedo);
@@ -1143,6 +1143,33 @@ TEST_F(CliTest, VoxelizeFindsOrDoesWithoutTheMtlAndKeepsTheLight)
         EXPECT_EQ(meta->str(), name);
     }
     EXPECT_EQ(ids->activeVoxelCount(), findGrid(lit.grids, "radiosity")->activeVoxelCount());
+}
+
+// An unlit scene (issue 45) would solve to zeros: refused in one line naming what would light
+// it, before any solving, writing nothing; a sky or a sun lights it.
+TEST_F(CliTest, UnlitScenesAreRefused)
+{
+    ASSERT_EQ(sh("vdbrad make plates lamp.vdb --res 16 --emission 0 --quiet && "
+                 "vdbrad make slab slab.vdb --res 8 --quiet").status, 0);
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"solve lamp.vdb out.vdb", "lamp.vdb: nothing lights the scene: no voxel emits (an "
+            "`emission` grid, MTL Ke) and there is no --sun or --sky"},
+        {"solve lamp.vdb out.vdb --sun 30,0 --irradiance 0", "nothing lights the scene"},
+        {"solve-cloud slab.vdb out.vdb --irradiance 0", "slab.vdb: nothing lights the cloud: "
+            "--irradiance is 0, the medium does not emit"},
+    };
+    for (const auto& [command, message] : cases) {
+        const Result r = sh("vdbrad " + command + " --quiet");
+        EXPECT_EQ(r.status, 1) << command;
+        ASSERT_EQ(r.errLines().size(), 1u) << r.err;
+        EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+        EXPECT_FALSE(exists(path("out.vdb"))) << command;
+    }
+    for (const char* light : {"--sky 0.5", "--sun 30,0"}) {
+        const Result r = sh(std::string("vdbrad solve lamp.vdb out.vdb --directions 40 --quiet "
+            "--overwrite ") + light);
+        EXPECT_EQ(r.status, 0) << light << ": " << r.err;
+    }
 }
 
 TEST_F(CliTest, VoxelizeRefusalsAreOneLineAndWriteNothing)

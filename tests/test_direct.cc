@@ -784,3 +784,196 @@ TEST_F(DirectTest, MonteCarloSeesTheLightsMeshPower)
         EXPECT_LT(std::sqrt(z2 / double(count)), 1.5);
     }
 }
+
+// The sun on an open floor (issue 45): every voxel's radiosity is rho E cos(zenith), whatever
+// the directions, since nothing else is lit and the floor does not see itself.
+TEST_F(DirectTest, SunOnAnOpenFloorGivesRhoECosZenith)
+{
+    SceneBuilder b;
+    for (int x = 0; x < 40; ++x) {
+        for (int z = 0; z < 40; ++z) b.set(Coord(x, 0, z), Vec3d(0, 1, 0), 0.5f, 0.f);
+    }
+    const Scene scene = b.build();
+    for (const double zenith : {0.0, 30.0, 75.0}) {
+        RadiosityOptions o;
+        o.directions = 100;
+        Sun sun;
+        sun.zenith = zenith;
+        sun.azimuth = 20.0;
+        sun.irradiance = 2.0;
+        o.sun = sun;
+        const auto B = openvdb::gridPtrCast<openvdb::FloatGrid>(solveRadiosity(scene, o));
+        ASSERT_TRUE(B);
+        const double expected = 0.5 * 2.0 * std::cos(zenith * kPi / 180.0);
+        size_t n = 0;
+        for (auto it = B->cbeginValueOn(); it; ++it, ++n) {
+            ASSERT_NEAR(*it, expected, 1e-5 * expected) << "zenith " << zenith << " at "
+                                                         << it.getCoord();
+        }
+        EXPECT_EQ(n, 1600u);
+    }
+}
+
+// A black box on a floor under the sun at 45 degrees: the floor is rho E cos(zenith) where
+// lit, exactly 0 in the umbra, and the shadow's area is the box's geometric shadow within its
+// outline's row of voxels. The box is black, so nothing is reflected: B = rho D exactly.
+TEST_F(DirectTest, SunCastsTheBoxsGeometricShadow)
+{
+    SceneBuilder b;
+    const int x0 = 30, z0 = 25, a = 10;   // the box: [x0, x0 + a) x [1, a] x [z0, z0 + a)
+    for (int x = 0; x < 60; ++x) {
+        for (int z = 0; z < 60; ++z) {
+            const bool under = x >= x0 && x < x0 + a && z >= z0 && z < z0 + a;
+            if (!under) b.set(Coord(x, 0, z), Vec3d(0, 1, 0), 0.5f, 0.f);
+        }
+    }
+    for (int x = x0; x < x0 + a; ++x) {
+        for (int y = 1; y <= a; ++y) {
+            for (int z = z0; z < z0 + a; ++z) {
+                const Vec3d n(x == x0 ? -1 : x == x0 + a - 1 ? 1 : 0, y == a ? 1 : 0,
+                    z == z0 ? -1 : z == z0 + a - 1 ? 1 : 0);
+                if (n != Vec3d(0.0)) b.set(Coord(x, y, z), n, 0.f, 0.f);
+            }
+        }
+    }
+    const Scene scene = b.build();
+    RadiosityOptions o;
+    o.directions = 100;
+    Sun sun;
+    sun.zenith = 45.0;   // azimuth 0, up y: towards +x and up, so the shadow falls towards -x
+    sun.irradiance = 2.0;
+    o.sun = sun;
+    const auto B = openvdb::gridPtrCast<openvdb::FloatGrid>(solveRadiosity(scene, o));
+    ASSERT_TRUE(B);
+    const double lit = 0.5 * 2.0 * std::cos(kPi / 4);
+    size_t shadowed = 0;
+    for (auto it = B->cbeginValueOn(); it; ++it) {
+        const Coord c = it.getCoord();
+        if (c.y() != 0) continue;
+        if (*it < 0.5 * lit) ++shadowed;
+        // Lit for sure: beside the shadow (one row off its outline), or on the sun's side.
+        if (c.z() < z0 - 1 || c.z() > z0 + a || c.x() >= x0 + a) {
+            EXPECT_NEAR(*it, lit, 1e-5 * lit) << c;
+        }
+        // Umbra for sure: a row inside the outline.
+        if (c.z() > z0 && c.z() < z0 + a - 1 && c.x() > x0 - a + 1 && c.x() < x0) {
+            EXPECT_EQ(*it, 0.f) << c;
+        }
+    }
+    // The geometric shadow beyond the footprint: each plane through its voxels' centres, the
+    // box's top a over the floor's, so a wide and a tan(45) = a long; within one row (a voxels)
+    // along its far edge, where a floor voxel's centre lies on the shadow's edge.
+    const double area = double(a) * double(a);
+    std::cout << "  shadow: " << shadowed << " floor voxels, geometric " << area << "\n";
+    EXPECT_NEAR(double(shadowed), area, double(a));
+}
+
+// ---- a uniform sky (issue 45) ------------------------------------------------------------------
+
+namespace {
+
+// The surface voxels of a solid (cells where @a inside holds, in [lo, hi]^3): those with an
+// empty 6-neighbour, each facing the sum of its empty neighbours' directions.
+template<typename InsideT>
+SceneBuilder
+solidSurface(int lo, int hi, InsideT inside, float albedo)
+{
+    SceneBuilder b;
+    for (int x = lo; x <= hi; ++x) {
+        for (int y = lo; y <= hi; ++y) {
+            for (int z = lo; z <= hi; ++z) {
+                if (!inside(x, y, z)) continue;
+                Vec3d n(0.0);
+                for (int axis = 0; axis < 3; ++axis) {
+                    for (int sign : {-1, 1}) {
+                        Coord c(x, y, z);
+                        c[axis] += sign;
+                        if (!inside(c.x(), c.y(), c.z())) n[axis] += sign;
+                    }
+                }
+                if (n != Vec3d(0.0)) b.set(Coord(x, y, z), n, albedo, 0.f);
+            }
+        }
+    }
+    return b;
+}
+
+std::vector<double>
+solvedValues(const Scene& scene, const RadiosityOptions& o)
+{
+    const auto B = openvdb::gridPtrCast<openvdb::FloatGrid>(solveRadiosity(scene, o));
+    std::vector<double> v;
+    for (auto it = B->cbeginValueOn(); it; ++it) v.push_back(*it);
+    return v;
+}
+
+} // namespace
+
+// A convex body under a uniform sky of radiance L: nothing it sees but sky, so every voxel's
+// radiosity is rho pi L.
+TEST_F(DirectTest, ConvexBodyUnderAUniformSkyIsRhoPiL)
+{
+    const Scene scene = solidSurface(0, 15, [](int x, int y, int z) {
+        return x >= 2 && x <= 13 && y >= 2 && y <= 13 && z >= 2 && z <= 13;
+    }, 0.6f).build();
+    RadiosityOptions o;
+    o.sky = 0.5;
+    const std::vector<double> B = solvedValues(scene, o);
+    const double expected = 0.6 * kPi * 0.5;
+    double worst = 0.0, mean = 0.0;
+    for (const double b : B) {
+        worst = std::max(worst, std::abs(b - expected));
+        mean += b / double(B.size());
+    }
+    std::cout << "  convex body: mean " << mean / expected << " of rho pi L, worst "
+              << worst / expected << "\n";
+    EXPECT_LT(worst, 0.01 * expected);
+    EXPECT_NEAR(mean, expected, 1e-3 * expected);
+}
+
+// The environment furnace: albedo 1 under a uniform sky L, a cup (a cavity open to the sky):
+// B = pi L everywhere at convergence, since every direction brings pi L, from the sky or from
+// a voxel at pi L. A closed box lets no sky in; a checkpointed solve resumes to the same bits.
+TEST_F(DirectTest, EnvironmentFurnaceIsPiLEverywhere)
+{
+    const Scene cup = solidSurface(-1, 17, [](int x, int y, int z) {
+        const bool block = x >= 0 && x < 16 && y >= 0 && y < 8 && z >= 0 && z < 16;
+        const bool hollow = x >= 2 && x < 14 && y >= 2 && z >= 2 && z < 14;
+        return block && !hollow;
+    }, 1.f).build();
+    RadiosityOptions o;
+    o.sky = 1.0;
+    o.tolerance = 1e-9;
+    o.maxIterations = 5000;
+    o.accelerate = Acceleration::Anderson;
+    const std::vector<double> B = solvedValues(cup, o);
+    double worst = 0.0;
+    for (const double b : B) worst = std::max(worst, std::abs(b - kPi));
+    std::cout << "  environment furnace: " << B.size() << " voxels, worst |B - pi L| / pi L "
+              << worst / kPi << "\n";
+    EXPECT_LT(worst, 1e-4 * kPi);
+
+    RadiosityOptions closed;
+    closed.sky = 1.0;
+    for (const double b : solvedValues(test::canonicalScene("furnace-box", 12, 0.5f, 0.f), closed)) {
+        ASSERT_EQ(b, 0.0);
+    }
+
+    // Saved after 3 iterations and restored: the uninterrupted run's bits.
+    RadiosityOptions few = o;
+    few.accelerate = Acceleration::None;
+    few.tolerance = 0.0;
+    few.maxIterations = 6;
+    RadiositySolver whole(cup, few);
+    whole.solve();
+    RadiositySolver first(cup, few);
+    for (int k = 0; k < 3; ++k) first.iterate();
+    SolverState state;
+    first.saveState(state);
+    RadiositySolver resumed(cup, few);
+    resumed.restoreState(state);
+    while (resumed.iterationCount() < 6) resumed.iterate();
+    ASSERT_EQ(whole.grey().size(), resumed.grey().size());
+    EXPECT_EQ(0, std::memcmp(whole.grey().data(), resumed.grey().data(),
+        whole.grey().size() * sizeof(float)));
+}

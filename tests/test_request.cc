@@ -111,6 +111,16 @@ TEST(Request, ChecksOptionsTogether)
     c.set("min-period", "8");
     EXPECT_EQ(optionError([&] { CloudSolve s(c); }),
         "--min-period applies to --periodic boxes only");
+    Request u("solve", surfaceSolveOptions());
+    u.set("irradiance", "3");
+    EXPECT_EQ(optionError([&] { SurfaceSolve s(u); }), "--irradiance needs --sun");
+    u.set("sun", "95,0");
+    EXPECT_EQ(optionError([&] { SurfaceSolve s(u); }),
+        "--sun: the zenith angle must be in [0, 90) degrees");
+    u.set("sun", "30,0");
+    u.set("direct", "sweep");
+    EXPECT_EQ(optionError([&] { SurfaceSolve s(u); }),
+        "--sun is computed exactly: it needs --direct exact or auto");
     Request k("solve", surfaceSolveOptions(), Spelling::Python);
     k.set("checkpoint-every", "3");
     EXPECT_EQ(optionError([&] { SurfaceSolve s(k); }),

@@ -22,6 +22,7 @@
 
 #include "vdbrad/cloud/Ground.h"
 #include "vdbrad/core/VoxelIndex.h"
+#include "vdbrad/scene/Sun.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
@@ -57,13 +58,6 @@ struct SolarBeamResult
 /// @param opaque       if not null, per voxel: nonzero for a surface (FogSurfaces.h), where a
 ///                     ray that reaches it leaves all its power (in `deposited`) and ends
 /// @throw openvdb::ValueError for invalid arguments; vdbrad::Cancelled if @a interrupt asks
-/// @brief The unit direction towards the sun in @a transform's index space, from its zenith
-/// angle (from the @a up axis) and azimuth (from the first horizontal axis towards the second:
-/// up y: x then z; up z: x then y; up x: y then z), in degrees. The transform is a uniform
-/// scale plus a rotation: world directions map to index ones by the inverse Jacobian.
-openvdb::Vec3d sunDirection(double zenith, double azimuth, int up,
-    const openvdb::math::Transform& transform);
-
 SolarBeamResult traceSolarBeam(const VoxelIndex& voxels, const std::vector<float>& opticalDepth,
     const openvdb::Vec3d& toSun, int up, bool periodic, int raysPerVoxel = 2,
     double irradiance = 1.0, openvdb::util::NullInterrupter* interrupt = nullptr,

@@ -27,8 +27,7 @@ mediumOptions()
     return {
         {"sun", OptionType::String, "0,0", "60,30",
             "sun zenith angle from the up axis, in [0, 89.9], and azimuth, degrees"},
-        OptionSpec{"up", OptionType::String, "y", "z",
-            "vertical axis: y (Houdini), z (Blender) or x"}.oneOf({"x", "y", "z"}),
+        options::up(),
         {"periodic", OptionType::Flag, "", "",
             "wrap light around the two horizontal axes (a tile of an infinite field)"},
         {"min-period", OptionType::String, "auto", "0",
@@ -207,6 +206,12 @@ CloudSolve::read(const openvdb::GridPtrVec& grids, openvdb::util::NullInterrupte
     }
     mCloud = buildCloud(grids, mCloudOptions, interrupt);
     mRead = true;
+    // Unlit, the answer is 0 everywhere: refused before any time is spent on it.
+    if (!(mOptions.irradiance > 0.0) && mCloud.emission().isZero() && !mScene.hasEmission()) {
+        OPENVDB_THROW(openvdb::ValueError, "nothing lights the cloud: " + r.spell("irradiance")
+            + " is 0, the medium does not emit (no fire where the density is) and no surface "
+            "emits");
+    }
     if (mCloud.lostEmitters() > 0) {
         mWarnings.push_back(withCommas(mCloud.lostEmitters()) + " voxels of '"
             + mCloud.emissionName() + "' emit where '" + mCloud.densityName() + "' is 0 or "

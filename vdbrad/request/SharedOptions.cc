@@ -84,6 +84,13 @@ checkpoints()
     };
 }
 
+OptionSpec
+up()
+{
+    return OptionSpec{"up", OptionType::String, "y", "z",
+        "vertical axis: y (Houdini), z (Blender) or x"}.oneOf({"x", "y", "z"});
+}
+
 std::vector<OptionSpec>
 resources()
 {

@@ -26,6 +26,8 @@ OptionSpec accelerate();
 OptionSpec andersonDepth();
 /// --checkpoint FILE, --checkpoint-every K, --resume FILE.
 std::vector<OptionSpec> checkpoints();
+/// --up: the vertical axis the sun's angles are measured from.
+OptionSpec up();
 /// --threads and --max-memory.
 std::vector<OptionSpec> resources();
 

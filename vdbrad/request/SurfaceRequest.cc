@@ -12,6 +12,7 @@
 #include <openvdb/Exceptions.h>
 
 #include <algorithm>
+#include <optional>
 #include <sstream>
 #include <utility>
 
@@ -97,6 +98,57 @@ solverOptions()
     };
 }
 
+std::vector<OptionSpec>
+sunOptions()
+{
+    return {
+        OptionSpec{"sky", OptionType::Float, "", "0.3",
+            "a uniform sky of this radiance: what a voxel facing the outside receives from "
+            "each direction in which it sees no voxel (pi x radiance x that share; diffuse "
+            "scenes)"}.atLeast(0),
+        {"sun", OptionType::String, "", "40,30",
+            "a sun: zenith angle from the --up axis, in [0, 90), and azimuth from the first "
+            "horizontal axis towards the second (up y: x then z), degrees, as for solve-cloud; "
+            "its first collision computed exactly with shadow rays (a soft shadow from its "
+            "disk), its reflections carried by the sweeps"},
+        OptionSpec{"irradiance", OptionType::Float, "1", "3",
+            "--sun: irradiance on a plane normal to the beam"}.atLeast(0),
+        OptionSpec{"sun-diameter", OptionType::Float, "0.53", "2",
+            "--sun: the disk's angular diameter, degrees (the penumbra's width)"}.within(0, 10),
+        options::up(),
+    };
+}
+
+// --sun and what comes with it; none without --sun.
+std::optional<Sun>
+sunOf(const Request& r, const std::string& method, DirectMode direct)
+{
+    if (!r.has("sun")) {
+        for (const char* name : {"irradiance", "sun-diameter", "up"}) {
+            if (r.has(name)) r.fail(r.spell(name) + " needs " + r.spell("sun"));
+        }
+        return std::nullopt;
+    }
+    const std::vector<double> angles = r.numbers("sun", 2, "zenith,azimuth in degrees");
+    Sun sun;
+    sun.zenith = angles[0];
+    sun.azimuth = angles[1];
+    if (!(sun.zenith >= 0.0 && sun.zenith < 90.0)) {
+        r.fail(r.spell("sun") + ": the zenith angle must be in [0, 90) degrees");
+    }
+    sun.up = r.choice<int>("up", {{"x", 0}, {"y", 1}, {"z", 2}});
+    sun.irradiance = r.getFloat("irradiance");
+    sun.diameter = r.getFloat("sun-diameter");
+    if (method == "montecarlo") {
+        r.fail(r.spell("sun") + " does not apply to " + r.spell("method") + " montecarlo");
+    }
+    if (direct == DirectMode::Sweep) {
+        r.fail(r.spell("sun") + " is computed exactly: it needs " + r.spell("direct")
+            + " exact or auto");
+    }
+    return sun;
+}
+
 // The glossy settings of @a r: --brdf, --control-points or --harmonics, --glossy-rotation.
 GlossyOptions
 glossyOptions(const Request& r)
@@ -157,8 +209,8 @@ checkSlabs(const Request& r, const RadiosityOptions& o, const std::string& metho
 const std::vector<OptionSpec>&
 surfaceSolveOptions()
 {
-    static const std::vector<OptionSpec> table = concat(concat(concat(options::scene(),
-        solverOptions()), options::checkpoints()), options::resources());
+    static const std::vector<OptionSpec> table = concat(concat(concat(concat(options::scene(),
+        solverOptions()), sunOptions()), options::checkpoints()), options::resources());
     return table;
 }
 
@@ -196,6 +248,13 @@ SurfaceSolve::SurfaceSolve(const Request& r, const Distribution* ranks)
     o.direct = r.choice<DirectMode>("direct", {{"auto", DirectMode::Auto},
         {"exact", DirectMode::Exact}, {"sweep", DirectMode::Sweep}});
     o.directSamples = r.getInt("direct-samples");
+    o.sun = sunOf(r, mMethod, o.direct);
+    if (r.has("sky")) {
+        o.sky = r.getFloat("sky");
+        if (mMethod == "montecarlo") {
+            r.fail(r.spell("sky") + " does not apply to " + r.spell("method") + " montecarlo");
+        }
+    }
     o.glossy = glossyOptions(r);
     if (mMethod == "montecarlo") checkMonteCarlo(r, o);
     const std::string cache = r.getString("visibility-cache");
@@ -218,7 +277,13 @@ SurfaceSolve::read(const openvdb::GridPtrVec& grids,
     mScene = buildScene(grids, mSceneOptions, interrupt);
     for (const auto& g : grids) mInputBytes += double(g->memUsage());
     mRead = true;
-    if (!mScene.hasEmission()) mWarnings.push_back("nothing emits: the scene is dark");
+    // Unlit, the answer is 0 everywhere: refused before any time is spent on it.
+    const bool sunlit = mOptions.sun && mOptions.sun->irradiance > 0.0;
+    if (!mScene.hasEmission() && !sunlit && !(mOptions.sky > 0.0)) {
+        OPENVDB_THROW(openvdb::ValueError, "nothing lights the scene: no voxel emits (an "
+            "`emission` grid, MTL Ke) and there is no " + r.spell("sun") + " or "
+            + r.spell("sky"));
+    }
     if (mScene.raisedRoughness() > 0) {
         mWarnings.push_back(std::to_string(mScene.raisedRoughness()) + " glossy voxels have a "
             "roughness below 0.1, raised to 0.1 (control points resolve no sharper lobe)");
@@ -239,6 +304,10 @@ SurfaceSolve::read(const openvdb::GridPtrVec& grids,
         if (mOptions.update == UpdateScheme::Progressive) {
             OPENVDB_THROW(openvdb::ValueError, "glossy surfaces need " + r.spell("update")
                 + " inplace or jacobi");
+        }
+        if (mOptions.sky > 0.0) {
+            OPENVDB_THROW(openvdb::ValueError, "a " + r.spell("sky") + " on glossy surfaces "
+                "(a `specular` grid) is not solved yet");
         }
     }
     if (findGrid(grids, names::kDensity)) {

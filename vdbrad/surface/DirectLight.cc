@@ -45,7 +45,7 @@ contour(const Vec3d& p, const Vec3d& n, const Vec3d* v, size_t m)
 }
 
 // Does the ray from @a p (off voxel @a self) to @a y on patch @a g arrive? Voxels stop it by
-// the surface rule (SurfacePlanes::stops).
+// the surface rule (SurfacePlanes::stops). g = kNone: @a y is out of the box (the sky).
 bool
 arrives(const Emitters& emitters, const SurfacePlanes& planes, VoxelIndex::Accessor& acc,
     const openvdb::CoordBBox& box, uint32_t self, const Vec3d& p, const Vec3d& y, int32_t g)
@@ -55,7 +55,7 @@ arrives(const Emitters& emitters, const SurfacePlanes& planes, VoxelIndex::Acces
     marchVoxels(acc, box, p + Vec3d(0.5), d, 0.0, 1.0, [&](int32_t index, double tIn,
             double tOut) {
         if (uint32_t(index) == self) return true;
-        if (emitters.patchOf(size_t(index)) == g) return false;   // reached the patch
+        if (g != Emitters::kNone && emitters.patchOf(size_t(index)) == g) return false;
         // The march's accessor: its lookups stay exact whatever the rule cached last.
         if (planes.stops(size_t(index), p, d, tIn, tOut, acc)) {
             arrived = false;
@@ -124,9 +124,11 @@ dealIncident(const std::vector<EmitterPatch>& patches, const Vec3d& p, double ov
 } // namespace
 
 bool
-usesExactDirect(DirectMode mode, const Scene& scene)
+usesExactDirect(DirectMode mode, const Scene& scene, bool sun)
 {
-    if (mode == DirectMode::Sweep || !scene.hasEmission()) return false;
+    if (mode == DirectMode::Sweep) return false;
+    if (sun) return true;
+    if (!scene.hasEmission()) return false;
     if (mode == DirectMode::Exact) return true;
     // Counted before any patch is built: a furnace (all emitters) builds none.
     size_t emitting = 0;
@@ -207,6 +209,15 @@ DirectLightSampler::DirectLightSampler(const Scene& scene, const Emitters& emitt
             mPatchRegion[size_t(g)] = (*regions)[i];
         }
     }
+    if (const auto& sun = options.sun) {
+        mToSun = sunDirection(sun->zenith, sun->azimuth, sun->up, scene.transform()).unit();
+        // Any unit vector off the beam's axis gives the two axes across it.
+        const Vec3d off = std::abs(mToSun[0]) < 0.9 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0);
+        mAcross1 = mToSun.cross(off).unit();
+        mAcross2 = mToSun.cross(mAcross1);
+        mSunRadius = 0.5 * sun->diameter * kPi / 180.0;
+        mRayLength = 2.0 * (mBox.dim().asVec3d().length() + 2.0);
+    }
 }
 
 DirectLightSampler::Workspace::Workspace(const DirectLightSampler& sampler)
@@ -216,6 +227,53 @@ DirectLightSampler::Workspace::Workspace(const DirectLightSampler& sampler)
 
 openvdb::Vec3d
 DirectLightSampler::at(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
+    Workspace& ws) const
+{
+    Vec3d sum = emittersAt(p, nx, self, h, ws);
+    if (mOptions.sun) sum += sunAt(p, nx, self, h, ws);
+    return sum;
+}
+
+// The sun's share: E max(0, n . s) times the share of rays to points of its disk that leave the
+// box; where they disagree (a penumbra), again with kPenumbra times the rays.
+openvdb::Vec3d
+DirectLightSampler::sunAt(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
+    Workspace& ws) const
+{
+    const double cosine = nx.dot(mToSun);
+    const double E = mOptions.sun->irradiance;
+    if (!(cosine > 0.0) || !(E > 0.0)) return Vec3d(0.0);
+    const Vec3d origin = mPlanes.rayOrigin(self, p);
+    // Points of the disk from an R2 sequence shifted per voxel (its own stream of the hash).
+    const double shiftU = unitHash(mixHash(h + 0x5157)), shiftV = unitHash(mixHash(h + 0x5158));
+    auto share = [&](size_t count, bool& mixed) {
+        size_t seen = 0;
+        for (size_t j = 0; j < count; ++j) {
+            const double u = std::fmod(shiftU + 0.7548776662466927 * double(j), 1.0);
+            const double v = std::fmod(shiftV + 0.5698402909980532 * double(j), 1.0);
+            const double r = mSunRadius * std::sqrt(u), phi = 2.0 * kPi * v;
+            const Vec3d d = mToSun + mAcross1 * (r * std::cos(phi)) + mAcross2 * (r * std::sin(phi));
+            ++ws.rays;
+            if (arrives(mEmitters, mPlanes, ws.acc, mBox, uint32_t(self), origin,
+                    origin + d.unit() * mRayLength, Emitters::kNone)) {
+                ++seen;
+            }
+        }
+        mixed = seen > 0 && seen < count;
+        return double(seen) / double(count);
+    };
+    const size_t S = size_t(mOptions.samples);
+    bool mixed = false;
+    double visible = share(S, mixed);
+    if (mixed) visible = share(kPenumbra * S, mixed);
+    const double irradiance = E * cosine * visible;
+    if (ws.incident && irradiance > 0.0) ws.incident->emplace_back(mToSun, Vec3d(irradiance));
+    return Vec3d(irradiance);
+}
+
+// The emitters' share (the file comment).
+openvdb::Vec3d
+DirectLightSampler::emittersAt(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t h,
     Workspace& ws) const
 {
     const std::vector<EmitterPatch>& patches = mEmitters.patches();
@@ -322,7 +380,7 @@ directIrradiance(const Scene& scene, const Emitters& emitters, const DirectLight
     const size_t n = scene.size();
     DirectIrradiance out;
     out.irradiance.assign(n, openvdb::Vec3f(0.f));
-    if (emitters.patches().empty()) return out;
+    if (emitters.patches().empty() && !options.sun) return out;
     std::atomic<uint64_t> rays{0}, factors{0};
     std::atomic<size_t> done{0};
     std::atomic<bool> cancelled{false};

@@ -22,12 +22,17 @@
 // exact; only penumbrae carry sampling error. Each voxel's sample points come from a counter-
 // based hash of (seed, voxel), so D is bit-identical for any thread count.
 //
+// The sun (DirectLightOptions::sun, Sun.h) adds E max(0, n . s) V(x, sun): V from S shadow rays
+// towards points of its disk (its penumbra), each stopped by the same rule, the cosine taken at
+// the disk's centre (over a 0.53 degree disk it varies by ~1e-5).
+//
 // Cost: per voxel, one form factor per patch in front of it (about 20 ns per outline edge) and
 // S rays through the index tree (docs/journal/2026-12-03-exact-direct-light.md).
 #pragma once
 
 #include "vdbrad/scene/Emitters.h"
 #include "vdbrad/scene/Scene.h"
+#include "vdbrad/scene/Sun.h"
 #include "vdbrad/scene/SurfacePlanes.h"
 
 #include <openvdb/openvdb.h>
@@ -35,6 +40,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -48,7 +54,8 @@ enum class DirectMode
     Sweep,
     /// Integrated exactly over the emitters (this file); the sweeps carry reflected light only.
     Exact,
-    /// Exact when something emits and the emitting voxels are at most half of the surface.
+    /// Exact when something emits and the emitting voxels are at most half of the surface, or
+    /// when there is a sun.
     /// Where emitters cover most of the scene every receiver sees them through many directions
     /// (no stripes), and a closed furnace, all emitters, stays exact to rounding through the
     /// sweeps' per-voxel normalisation (an exact integral over voxel patches would not close).
@@ -65,11 +72,13 @@ struct DirectLightOptions
     uint64_t seed = 1;
     /// The MPI job whose ranks share the voxels out (Distribution.h); null: this process.
     const Distribution* ranks = nullptr;
+    /// A sun beside the emitters (none: the emitters alone).
+    std::optional<Sun> sun;
 };
 
-/// True if @a mode resolves to exact direct light for @a scene (something emits; Auto: at most
-/// half of its voxels).
-bool usesExactDirect(DirectMode mode, const Scene& scene);
+/// True if @a mode resolves to exact direct light for @a scene (something emits, or @a sun;
+/// Auto: at most half of its voxels emit, or a sun).
+bool usesExactDirect(DirectMode mode, const Scene& scene, bool sun = false);
 
 /// @brief The form factor from a point @a p with unit normal @a n to a planar polygon given by
 /// its closed loops (holes running the other way), clipped to the hemisphere of @a n.
@@ -119,6 +128,11 @@ public:
         Workspace& workspace) const;
 
 private:
+    openvdb::Vec3d emittersAt(const openvdb::Vec3d& p, const openvdb::Vec3d& n, size_t self,
+        uint64_t h, Workspace& workspace) const;
+    openvdb::Vec3d sunAt(const openvdb::Vec3d& p, const openvdb::Vec3d& n, size_t self,
+        uint64_t h, Workspace& workspace) const;
+
     const Scene& mScene;
     const Emitters& mEmitters;
     DirectLightOptions mOptions;
@@ -126,6 +140,10 @@ private:
     openvdb::CoordBBox mBox;
     std::vector<uint32_t> mPatchRegion;   // the room each patch faces
     SurfacePlanes mPlanes;                // each voxel's plane, the surface rule
+    // The sun: towards it (unit, index space), two unit axes across it, its angular radius
+    // (radians) and the length of a ray that leaves the box.
+    openvdb::Vec3d mToSun{0.0}, mAcross1{0.0}, mAcross2{0.0};
+    double mSunRadius = 0.0, mRayLength = 0.0;
 };
 
 struct DirectIrradiance

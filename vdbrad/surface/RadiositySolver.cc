@@ -61,6 +61,25 @@ checkOptions(const Scene& scene, const RadiosityOptions& options, bool slab)
         OPENVDB_THROW(openvdb::ValueError, "direct-light samples must be >= 1, got "
             << options.directSamples);
     }
+    if (!(options.sky >= 0.0) || !std::isfinite(options.sky)) {
+        OPENVDB_THROW(openvdb::ValueError, "the sky's radiance must be finite and >= 0, got "
+            << options.sky);
+    }
+    if (options.sky > 0.0 && scene.isGlossy()) {
+        OPENVDB_THROW(openvdb::ValueError, "a sky on glossy surfaces is not solved yet");
+    }
+    if (const auto& sun = options.sun) {
+        if (options.direct == DirectMode::Sweep) {
+            OPENVDB_THROW(openvdb::ValueError, "the sun's light is computed exactly: it does not "
+                "go through the directions (direct light sweep)");
+        }
+        if (!(sun->zenith >= 0.0 && sun->zenith < 90.0) || !std::isfinite(sun->azimuth)
+            || !(sun->irradiance >= 0.0) || !std::isfinite(sun->irradiance)
+            || !(sun->diameter >= 0.0 && sun->diameter <= 10.0) || sun->up < 0 || sun->up > 2) {
+            OPENVDB_THROW(openvdb::ValueError, "the sun needs a zenith in [0, 90) degrees, a "
+                "finite azimuth, an irradiance >= 0 and a diameter in [0, 10] degrees");
+        }
+    }
     if (slab) {
         // What the slab passes do not carry (SlabDistribution.h).
         auto refuse = [](const char* what) {
@@ -194,7 +213,8 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
 
     // Exact direct light: the sweeps solve R = rho (D + gathered R) for R = B - E.
     impl.source = &scene.emission();
-    impl.exact = impl.slab ? impl.slab->exact : usesExactDirect(options.direct, scene);
+    impl.exact = impl.slab ? impl.slab->exact
+                           : usesExactDirect(options.direct, scene, bool(options.sun));
     if (impl.exact) {
         impl.emitters = impl.slab ? impl.slab->emitters : Emitters(scene);
         impl.source = &impl.reflected;   // 0 until the first iterate() computes D
@@ -229,6 +249,7 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
     DirectLightOptions d;
     d.samples = mOptions.directSamples;
     d.ranks = mOptions.ranks;
+    d.sun = mOptions.sun;
     // Glossy voxels also need where their direct light comes from: the estimate's arrivals,
     // splatted on the points (per unit of irradiance; iterate() scales by the voxel's cosine
     // sum as the sweeps' splats are).
@@ -353,6 +374,7 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     const size_t n = scene.size(), c = channels * scalar, t = size_t(std::max(threads, 1));
     size_t perVoxel = SweepSchedule::bytesPerVoxel(true, true, true);
     perVoxel += 8 + 4;                      // invZ, region
+    if (options.sky > 0.0) perVoxel += 4;   // the share of the sky
     perVoxel += 2 * c + 4 * c;              // B, the previous B, B in each pattern's order
     if (wide) perVoxel += channels * 4;     // B rounded to float
     perVoxel += size_t(kGroups) * c;        // gathered sums per group
@@ -364,7 +386,7 @@ RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& opti
     if (cache) perVoxel += t * (4 + 4 + 12 + 4 + VisibilityCache::kWorstBytesPerVoxel);
     if (options.update == UpdateScheme::Progressive) perVoxel += c;
     // Exact direct light: the patch of each voxel, D, rho D and E + R in float.
-    if (options.direct != DirectMode::Sweep && scene.hasEmission()) {
+    if (options.direct != DirectMode::Sweep && (scene.hasEmission() || options.sun)) {
         perVoxel += 4 + 12 + channels * 4 * 2;
     }
     if (options.accelerate == Acceleration::Anderson) {
@@ -468,6 +490,17 @@ RadiositySolver::fingerprint() const
         const int64_t direct[2] = {1, mOptions.directSamples};
         h = hashBytes(direct, sizeof direct, h);
     }
+    if (mOptions.sky > 0.0) {
+        // Only solves with a sky hash it (older fingerprints unchanged).
+        const double sky[2] = {2.0, mOptions.sky};
+        h = hashBytes(sky, sizeof sky, h);
+    }
+    if (const auto& sun = mOptions.sun) {
+        // Only solves with a sun hash it (older fingerprints unchanged).
+        const double light[5] = {sun->zenith, sun->azimuth, double(sun->up), sun->irradiance,
+            sun->diameter};
+        h = hashBytes(light, sizeof light, h);
+    }
     if (mImpl->glossy) {
         // Only glossy solves hash their lobes (older fingerprints unchanged).
         h = mScene.specular().hash(h);
@@ -492,6 +525,7 @@ RadiositySolver::saveState(SolverState& state) const
     const uint8_t flags[2] = {uint8_t(impl.hitsKnown), uint8_t(impl.gatheredStale)};
     state.put("flags", flags, 2);
     state.put("invZ", impl.invZ);
+    if (mOptions.sky > 0.0) state.put("sky", impl.skyShare);
     impl.withState(mScene.isRgb(), [&](const auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using Scalar = typename StateT::Scalar;
@@ -527,6 +561,12 @@ RadiositySolver::restoreState(const SolverState& state)
     impl.hitsKnown = flags[0] != 0;
     impl.gatheredStale = flags[1] != 0;
     impl.invZ = state.get<double>("invZ", n);
+    if (mOptions.sky > 0.0) {
+        impl.skyShare = state.get<float>("sky");
+        if (!impl.skyShare.empty() && impl.skyShare.size() != n) {
+            OPENVDB_THROW(openvdb::ValueError, "checkpoint's sky shares do not fit the scene");
+        }
+    }
     impl.withState(mScene.isRgb(), [&](auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using Scalar = typename StateT::Scalar;
@@ -712,11 +752,20 @@ RadiositySolver::describe() const
        << (mOptions.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
        << (doublePrecision() ? ", double precision" : "");
     if (exactDirect()) {
-        os << ", exact direct light from " << withCommas(emitters().voxels())
-           << " emitting voxels (" << emitters().patches().size()
-           << (emitters().patches().size() == 1 ? " patch, " : " patches, ")
-           << mOptions.directSamples << " shadow rays per voxel)";
+        os << ", exact direct light (" << mOptions.directSamples << " shadow rays per voxel) from ";
+        if (emitters().voxels() > 0) {
+            os << withCommas(emitters().voxels()) << " emitting voxels ("
+               << emitters().patches().size()
+               << (emitters().patches().size() == 1 ? " patch)" : " patches)");
+            if (mOptions.sun) os << " and ";
+        }
+        if (const auto& sun = mOptions.sun) {
+            os << "the sun (zenith " << sun->zenith << ", azimuth " << sun->azimuth
+               << " degrees, irradiance " << sun->irradiance << ", " << sun->diameter
+               << " degrees wide)";
+        }
     }
+    if (mOptions.sky > 0.0) os << ", a uniform sky of radiance " << mOptions.sky;
     if (mImpl->glossy) os << ", " << mImpl->glossy->describe();
     return os.str();
 }

@@ -125,6 +125,15 @@ struct RadiosityOptions
     DirectMode direct = DirectMode::Auto;
     /// Shadow rays per voxel for exact direct light (DirectLightOptions::samples), >= 1.
     int directSamples = 16;
+    /// A uniform sky: the radiance L arriving from every direction in which a voxel facing the
+    /// outside sees nothing (>= 0; 0: none). A voxel receives pi L times its share of the
+    /// directions that met no voxel (measured by the first sweep: Enclosure.h's hit weights),
+    /// so a scene of albedo 1 under it has B = pi L everywhere, whatever its shape. Grey,
+    /// diffuse scenes.
+    double sky = 0.0;
+    /// A sun (Sun.h): its first collision is computed exactly with the emitters' (DirectLight.h;
+    /// needs DirectMode Exact or Auto), its reflections carried by the sweeps.
+    std::optional<Sun> sun;
     /// The MPI job the solve is shared with (Distribution::join(), kept by the host; not
     /// owned); null: this process alone.
     const Distribution* ranks = nullptr;

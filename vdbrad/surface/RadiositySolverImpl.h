@@ -77,6 +77,9 @@ struct RadiositySolver::Impl
     std::vector<double> invZ;                            // per voxel: 1 / Z(n)
     Regions regions;                                     // per voxel: the air region it faces
     bool hitsKnown = false;                              // invZ renormalised for closed voxels
+    // RadiosityOptions::sky: per voxel, pi times its share of the directions that met no voxel
+    // (known with the hit weights; empty before, and without a sky).
+    std::vector<float> skyShare;
     bool gatheredStale = false;                          // B was replaced: next step is Jacobi
     bool wide = false;                                   // the state is double (Precision)
     // Exact direct light (DirectLight.h): the iterate is then R = B - E and its source is

@@ -1,5 +1,6 @@
 #include "vdbrad/surface/RadiositySolverImpl.h"
 
+#include "vdbrad/core/Constants.h"
 #include "vdbrad/core/Denormals.h"
 #include "vdbrad/core/Errors.h"
 #include "vdbrad/core/Precision.h"
@@ -393,12 +394,19 @@ struct RadiositySolver::Engine
         Impl& impl = *s.mImpl;
         const SweepSchedule& schedule = *impl.schedule;
         const size_t n = s.mScene.size();
+        const bool sky = s.mOptions.sky > 0.0;
+        if (sky) impl.skyShare.assign(n, 0.f);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
             [&](const tbb::blocked_range<size_t>& r) {
                 for (size_t i = r.begin(); i != r.end(); ++i) {
-                    if (impl.regions.region[i] == 0) continue;   // faces the outside
                     double h = 0.0;
                     schedule.sum(hits, i, 1, &h);
+                    if (impl.regions.region[i] == 0) {   // faces the outside: keeps its losses
+                        if (sky) {
+                            impl.skyShare[i] = float(kPi * std::max(0.0, 1.0 - h * impl.invZ[i]));
+                        }
+                        continue;
+                    }
                     if (h > 0.0) impl.invZ[i] = 1.0 / h;
                 }
             });
@@ -533,12 +541,16 @@ struct RadiositySolver::Engine
                     });
             }
             if (measureHits) applyHitWeights(s, hits);
+            // The sky, a constant source once its shares are known: shot once when shooting.
+            const float skyL = (!impl.skyShare.empty() && (!shooting || measureHits))
+                ? float(s.mOptions.sky) : 0.f;
             tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
                 [&](const tbb::blocked_range<size_t>& r) {
                     for (size_t i = r.begin(); i != r.end(); ++i) {
                         WideT sum = openvdb::zeroVal<WideT>();
                         schedule.sum(gathered, i, 1, &sum);
-                        const ValueT incoming = ValueT(sum * impl.invZ[i]);
+                        ValueT incoming = ValueT(sum * impl.invZ[i]);
+                        if (skyL > 0.f) incoming += ValueT(skyL * impl.skyShare[i]);
                         if (shooting) {
                             U[i] = value<ValueT>(scene.albedo(), i) * incoming;
                             B[i] += U[i];

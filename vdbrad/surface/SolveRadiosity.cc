@@ -79,7 +79,7 @@ solveSlabs(const Scene& scene, Scene* owned, const RadiosityOptions& options,
     context->frame.voxels = scene.size();
     context->slabs = ranks.ranks();
     context->wide = solvesInDouble(scene.albedo(), options.precision);
-    context->exact = usesExactDirect(options.direct, scene);
+    context->exact = usesExactDirect(options.direct, scene, bool(options.sun));
     {
         Regions whole = findRegions(scene.voxels(), scene.normals(), options.lines,
             kEnclosureBlocks);
@@ -94,6 +94,7 @@ solveSlabs(const Scene& scene, Scene* owned, const RadiosityOptions& options,
             DirectLightOptions d;
             d.samples = options.directSamples;
             d.ranks = options.ranks;
+            d.sun = options.sun;
             // Shared out between the ranks in blocks (Distribution.h) and combined.
             DirectIrradiance D = directIrradiance(scene, context->emitters, d,
                 whole.cavities > 0 ? &whole.region : nullptr, interrupt);
