@@ -121,6 +121,5 @@ describeReading(const Arguments& a, const std::string& label, const VdbFile& fil
     for (const std::string& n : notes) std::cerr << "vdbrad: " << label << ": " << n << "\n";
 }
 
-
 } // namespace cli
 } // namespace vdbrad

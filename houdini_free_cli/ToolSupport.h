@@ -81,19 +81,5 @@ forFile(const std::string& label, F&& f) -> decltype(f())
     }
 }
 
-// ---- options (each command's own: vdbrad/request/) -------------------------------------------
-
-/// @brief The value of the choice option @a name, mapped through @a values.
-/// The table has checked the word; a word of its choices missing here is a programming error.
-template<typename T>
-T
-choice(const Arguments& a, const std::string& name, const std::map<std::string, T>& values)
-{
-    const std::string word = a.getString(name);
-    const auto it = values.find(word);
-    if (it == values.end()) throw std::logic_error("--" + name + " " + word + " has no meaning");
-    return it->second;
-}
-
 } // namespace cli
 } // namespace vdbrad
