@@ -5,6 +5,7 @@
 #include "ToolSupport.h"
 
 #include "vdbrad/request/RenderRequest.h"
+#include "vdbrad/request/SurfaceRequest.h"
 #include "vdbrad/vdbrad.h"
 
 #include <cstdio>
@@ -41,6 +42,12 @@ runRender(const Arguments& a)
     const VdbFile file = readInput(in);
     const std::string label = inputLabel(in);
     describeReading(a, label, file, o.scene.surface, o.cloud.density);
+    // The sky and sun it was solved under: the background, and the gather's light.
+    std::vector<std::string> lightWarnings;
+    const OutsideLight light = solvedLight(file.grids, lightWarnings);
+    o.sky = light.sky;
+    o.sun = light.sun;
+    for (const std::string& w : lightWarnings) warn(label, w);
     ProgressInterrupter progress(a.flag("quiet"));
     const Image image = forFile(label, [&] {
         progress.start("reading the scene");

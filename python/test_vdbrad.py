@@ -268,7 +268,7 @@ class Module(unittest.TestCase):
         self.assertTrue(done.stdout.strip().endswith("True"))
 
     def test_unlit_scene_is_refused(self):
-        with self.assertRaisesRegex(ValueError, "nothing lights the scene: .* no sun or sky"):
+        with self.assertRaisesRegex(ValueError, "nothing lights the scene: .* no sun, sky or environment"):
             vdbrad.solve(furnace_box(4, 0.5, 0.0), directions=20)
         # A sky lights it (from outside: the box's walls face inwards, so none of it enters).
         lit = vdbrad.solve(furnace_box(4, 0.5, 0.0), directions=20, sky=1.0)

@@ -501,6 +501,12 @@ render(const py::object& gridsIn, const py::kwargs& kwargs)
     RenderRequest q = readRenderRequest(request);
     std::string exr;
     if (kwargs.contains("exr") && !kwargs["exr"].is_none()) exr = kwargs["exr"].cast<std::string>();
+    // The sky and sun it was solved under: the background, and the gather's light.
+    std::vector<std::string> lightWarnings;
+    const OutsideLight light = solvedLight(input.grids, lightWarnings);
+    q.render.sky = light.sky;
+    q.render.sun = light.sun;
+    for (const std::string& w : lightWarnings) warn(w);
     const Image image = runReleased(nullptr, [&](PythonInterrupter* interrupt) {
         if (!q.meshPath.empty()) {
             q.render.mesh = std::make_shared<const TriangleMesh>(readMesh(q.meshPath));

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# A scene with no lamp, lit by daylight: the sun (its first collision exact, soft shadows) and a
-# uniform sky, over pipes:
-#   vdbrad voxelize blocks.obj - | vdbrad solve - - --sun 50,30 --irradiance 3 --sky 0.2 \
-#     | vdbrad render - blocks.exr --png blocks.png
+# A scene with no lamp, lit by daylight: the sun (its first collision exact, soft shadows) and
+# Preetham's clear sky for its position (blue overhead, paler and brighter round the sun; in
+# kcd/m^2 as Blender's Preetham sky, so a clear day's sun is ~100 klx), over pipes:
+#   vdbrad voxelize blocks.obj - | vdbrad solve - - --sky-model clear --sun 50,30 \
+#     --irradiance 100 | vdbrad render - blocks.exr --png blocks.png
 # Writes blocks.obj (three blocks on a ground, metres, y up), blocks_lit.vdb, blocks.exr and
 # blocks.png in the current folder. RES (voxels along the longest axis) and SIZE (image WxH)
 # trade quality for time.
@@ -27,7 +28,7 @@ box() {
   box 1 0 2 4 3 4 20
 } > blocks.obj
 "$VDBRAD" voxelize blocks.obj - --res "${RES:-192}" --quiet 2>/dev/null \
-  | "$VDBRAD" solve - - --sun 50,30 --irradiance 3 --sky 0.2 --quiet \
+  | "$VDBRAD" solve - - --sky-model clear --sun 50,30 --irradiance 100 --quiet \
   | tee blocks_lit.vdb \
   | "$VDBRAD" render - blocks.exr --png blocks.png --res "${SIZE:-640x480}" --quiet \
       --camera 9,8,-11,0,1,0,0,1,0,40

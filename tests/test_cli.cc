@@ -1123,7 +1123,7 @@ TEST_F(CliTest, VoxelizeFindsOrDoesWithoutTheMtlAndKeepsTheLight)
         "vdbrad: warning: nomtl.obj:1: material library 'missing.mtl' not found: its materials "
         "get albedo 0.5 and no emission",
         "vdbrad: warning: nomtl.obj: nothing emits (no MTL material with Ke > 0): light it with "
-        "solve's --sun or --sky"}));
+        "solve's --sun, --sky or --environment"}));
     const VdbFile d = readVdbFile(path("dark.vdb"));
     const auto albedo = openvdb::gridConstPtrCast<openvdb::FloatGrid>(findGrid(d.grids, "albedo"));
     ASSERT_TRUE(albedo);
@@ -1153,7 +1153,7 @@ TEST_F(CliTest, UnlitScenesAreRefused)
                  "vdbrad make slab slab.vdb --res 8 --quiet").status, 0);
     const std::vector<std::pair<std::string, std::string>> cases = {
         {"solve lamp.vdb out.vdb", "lamp.vdb: nothing lights the scene: no voxel emits (an "
-            "`emission` grid, MTL Ke) and there is no --sun or --sky"},
+            "`emission` grid, MTL Ke) and there is no --sun, --sky or --environment"},
         {"solve lamp.vdb out.vdb --sun 30,0 --irradiance 0", "nothing lights the scene"},
         {"solve-cloud slab.vdb out.vdb --irradiance 0", "slab.vdb: nothing lights the cloud: "
             "--irradiance is 0, the medium does not emit"},
@@ -1170,6 +1170,64 @@ TEST_F(CliTest, UnlitScenesAreRefused)
             "--overwrite ") + light);
         EXPECT_EQ(r.status, 0) << light << ": " << r.err;
     }
+}
+
+// Skies (issue 45): --sky grey or RGB, --sky-model clear, --environment FILE.exr; what
+// contradicts itself refused in one line; the render shows the sky the file was solved under.
+TEST_F(CliTest, SkiesAndEnvironmentMaps)
+{
+    ASSERT_EQ(sh("vdbrad make plates lamp.vdb --res 16 --emission 0 --quiet").status, 0);
+    // A 64 x 32 map: 0.4 with one pixel 10^4 times brighter (a sun), and one without.
+    Image map;
+    map.width = 64;
+    map.height = 32;
+    map.pixels.assign(64 * 32, openvdb::Vec3f(0.4f));
+    {
+        std::ofstream(path("plain.exr"), std::ios::binary) << encodeExr(map, ExrPixel::Float);
+        map.at(20, 8) = openvdb::Vec3f(4000.f);
+        std::ofstream(path("sunny.exr"), std::ios::binary) << encodeExr(map, ExrPixel::Float);
+    }
+    writeText("text.exr", "not an image\n");
+    const std::vector<std::pair<std::string, std::string>> refused = {
+        {"--sky -1", "--sky must be >= 0"},
+        {"--sky 1,2", "--sky needs one number (grey) or three (r,g,b), got '1,2'"},
+        {"--sky-model clear", "--sky-model clear needs --sun (its position)"},
+        {"--turbidity 4", "--turbidity needs --sky-model clear"},
+        {"--sky 0.5 --environment plain.exr", "one sky at a time: --sky, --sky-model clear or "
+            "--environment"},
+        {"--environment missing.exr", "--environment: cannot open 'missing.exr'"},
+        {"--environment text.exr", "--environment: 'text.exr' is not a readable OpenEXR image"},
+        {"--environment sunny.exr --sun 30,0", "--environment holds a sun"},
+        {"--environment-rotation 30", "--environment-rotation needs --environment"},
+        {"--up z --sky 1", "--up needs --sun or --environment"},
+    };
+    for (const auto& [options, message] : refused) {
+        const Result r = sh("vdbrad solve lamp.vdb out.vdb --quiet " + options);
+        EXPECT_EQ(r.status, 2) << options;   // options that cannot be: usage errors
+        ASSERT_EQ(r.errLines().size(), 1u) << options << ": " << r.err;
+        EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+        EXPECT_FALSE(exists(path("out.vdb"))) << options;
+    }
+    // An RGB sky makes the grey plates' radiosity RGB; the render's background is pi L.
+    const Result rgb = sh("vdbrad solve lamp.vdb rgb.vdb --quiet --directions 40 --sky 0.2,0.3,0.5 "
+                          "&& vdbrad render rgb.vdb rgb.exr --quiet --res 32x24");
+    ASSERT_EQ(rgb.status, 0) << rgb.err;
+    const VdbFile solved = readVdbFile(path("rgb.vdb"));
+    const auto radiosity = findGrid(solved.grids, "radiosity");
+    ASSERT_TRUE(openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(radiosity));
+    EXPECT_EQ(radiosity->metaValue<std::string>("vdbrad:light"), "sky=0.2,0.3,0.5\n");
+    const Image picture = decodeExr(slurp(path("rgb.exr")));
+    const openvdb::Vec3f corner = picture.at(0, 0);
+    const double sky[3] = {0.2, 0.3, 0.5};
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(corner[c], kPi * sky[c], 2e-3) << c;
+    // The map's sun split off (said with --verbose), the rest of the map as the sky.
+    const Result env = sh("vdbrad solve lamp.vdb env.vdb --directions 40 --verbose "
+                          "--environment sunny.exr --up z --environment-rotation 30");
+    ASSERT_EQ(env.status, 0) << env.err;
+    EXPECT_NE(env.err.find("a sun split off at zenith"), std::string::npos) << env.err;
+    const Result clear = sh("vdbrad solve lamp.vdb clear.vdb --quiet --directions 40 "
+                            "--sky-model clear --sun 40,30 --irradiance 100 --turbidity 2.5");
+    ASSERT_EQ(clear.status, 0) << clear.err;
 }
 
 TEST_F(CliTest, VoxelizeRefusalsAreOneLineAndWriteNothing)

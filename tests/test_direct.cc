@@ -800,7 +800,7 @@ TEST_F(DirectTest, SunOnAnOpenFloorGivesRhoECosZenith)
         Sun sun;
         sun.zenith = zenith;
         sun.azimuth = 20.0;
-        sun.irradiance = 2.0;
+        sun.irradiance = Vec3d(2.0);
         o.sun = sun;
         const auto B = openvdb::gridPtrCast<openvdb::FloatGrid>(solveRadiosity(scene, o));
         ASSERT_TRUE(B);
@@ -841,7 +841,7 @@ TEST_F(DirectTest, SunCastsTheBoxsGeometricShadow)
     o.directions = 100;
     Sun sun;
     sun.zenith = 45.0;   // azimuth 0, up y: towards +x and up, so the shadow falls towards -x
-    sun.irradiance = 2.0;
+    sun.irradiance = Vec3d(2.0);
     o.sun = sun;
     const auto B = openvdb::gridPtrCast<openvdb::FloatGrid>(solveRadiosity(scene, o));
     ASSERT_TRUE(B);
@@ -917,7 +917,7 @@ TEST_F(DirectTest, ConvexBodyUnderAUniformSkyIsRhoPiL)
         return x >= 2 && x <= 13 && y >= 2 && y <= 13 && z >= 2 && z <= 13;
     }, 0.6f).build();
     RadiosityOptions o;
-    o.sky = 0.5;
+    o.sky = Sky::uniform(Vec3d(0.5));
     const std::vector<double> B = solvedValues(scene, o);
     const double expected = 0.6 * kPi * 0.5;
     double worst = 0.0, mean = 0.0;
@@ -942,7 +942,7 @@ TEST_F(DirectTest, EnvironmentFurnaceIsPiLEverywhere)
         return block && !hollow;
     }, 1.f).build();
     RadiosityOptions o;
-    o.sky = 1.0;
+    o.sky = Sky::uniform(Vec3d(1.0));
     o.tolerance = 1e-9;
     o.maxIterations = 5000;
     o.accelerate = Acceleration::Anderson;
@@ -954,7 +954,7 @@ TEST_F(DirectTest, EnvironmentFurnaceIsPiLEverywhere)
     EXPECT_LT(worst, 1e-4 * kPi);
 
     RadiosityOptions closed;
-    closed.sky = 1.0;
+    closed.sky = Sky::uniform(Vec3d(1.0));
     for (const double b : solvedValues(test::canonicalScene("furnace-box", 12, 0.5f, 0.f), closed)) {
         ASSERT_EQ(b, 0.0);
     }
@@ -976,4 +976,232 @@ TEST_F(DirectTest, EnvironmentFurnaceIsPiLEverywhere)
     ASSERT_EQ(whole.grey().size(), resumed.grey().size());
     EXPECT_EQ(0, std::memcmp(whole.grey().data(), resumed.grey().data(),
         whole.grey().size() * sizeof(float)));
+}
+
+// ---- skies by direction: clear sky, environment maps (issue 45) -------------------------------
+
+namespace {
+
+// A latitude-longitude map of @a width x width / 2 pixels, @a f(column, row) each.
+template<typename F>
+std::vector<Vec3f>
+latLong(int width, F f)
+{
+    std::vector<Vec3f> pixels;
+    for (int row = 0; row < width / 2; ++row) {
+        for (int col = 0; col < width; ++col) pixels.push_back(f(col, row));
+    }
+    return pixels;
+}
+
+// The cup of EnvironmentFurnaceIsPiLEverywhere (a cavity open to the sky), of albedo @a rho.
+SceneBuilder
+cupOf(float rho)
+{
+    return solidSurface(-1, 17, [](int x, int y, int z) {
+        const bool block = x >= 0 && x < 16 && y >= 0 && y < 8 && z >= 0 && z < 16;
+        const bool hollow = x >= 2 && x < 14 && y >= 2 && z >= 2 && z < 14;
+        return block && !hollow;
+    }, rho);
+}
+
+std::vector<Vec3f>
+solvedColours(const Scene& scene, const RadiosityOptions& o)
+{
+    const auto grid = solveRadiosity(scene, o);
+    std::vector<Vec3f> v;
+    if (const auto rgb = openvdb::gridPtrCast<openvdb::Vec3SGrid>(grid)) {
+        for (auto it = rgb->cbeginValueOn(); it; ++it) v.push_back(*it);
+    } else {
+        const auto grey = openvdb::gridPtrCast<openvdb::FloatGrid>(grid);
+        for (auto it = grey->cbeginValueOn(); it; ++it) v.push_back(Vec3f(*it));
+    }
+    return v;
+}
+
+// Largest |a - b| over all channels, relative to the largest |b|.
+double
+relativeGap(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b)
+{
+    EXPECT_EQ(a.size(), b.size());
+    double gap = 0.0, size = 0.0;
+    for (size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+        for (int c = 0; c < 3; ++c) {
+            gap = std::max(gap, double(std::abs(a[i][c] - b[i][c])));
+            size = std::max(size, double(std::abs(b[i][c])));
+        }
+    }
+    return size > 0.0 ? gap / size : gap;
+}
+
+} // namespace
+
+// An RGB sky makes a grey scene's solve RGB: a convex body gets rho pi L in each channel.
+TEST_F(DirectTest, RgbSkyOnAGreyConvexBodyIsRhoPiLPerChannel)
+{
+    const Scene scene = solidSurface(0, 15, [](int x, int y, int z) {
+        return x >= 2 && x <= 13 && y >= 2 && y <= 13 && z >= 2 && z <= 13;
+    }, 0.6f).build();
+    RadiosityOptions o;
+    o.sky = Sky::uniform(Vec3d(0.2, 0.5, 1.0));
+    const std::vector<Vec3f> B = solvedColours(scene, o);
+    ASSERT_FALSE(B.empty());
+    for (const Vec3f& b : B) {
+        for (int c = 0; c < 3; ++c) {
+            const double expected = 0.6 * kPi * o.sky.radiance(Vec3d(0, 1, 0))[c];
+            ASSERT_NEAR(b[c], expected, 0.01 * expected) << "channel " << c;
+        }
+    }
+}
+
+// A constant map is the uniform sky of its value (its cells' means are that value), here in a
+// cup that also sees itself.
+TEST_F(DirectTest, ConstantMapEqualsTheUniformSky)
+{
+    const Scene cup = cupOf(0.7f).build();
+    RadiosityOptions o;
+    o.tolerance = 0.0;
+    o.maxIterations = 6;
+    o.sky = Sky::uniform(Vec3d(0.8));
+    const std::vector<Vec3f> uniform = solvedColours(cup, o);
+    o.sky = Sky::fromMap(64, 32, latLong(64, [](int, int) { return Vec3f(0.8f); }), 1);
+    EXPECT_FALSE(o.sky.sun());
+    EXPECT_FALSE(o.sky.isRgb());
+    const double gap = relativeGap(solvedColours(cup, o), uniform);
+    std::cout << "  constant map vs uniform sky: " << gap << "\n";
+    EXPECT_LT(gap, 1e-6);
+}
+
+// A map holding one bright pixel over a uniform background is that background plus a sun of
+// the pixel's excess power, in its centre's direction, as wide as its solid angle.
+TEST_F(DirectTest, MapWithOneBrightPixelEqualsASun)
+{
+    SceneBuilder b;
+    for (int x = 0; x < 40; ++x) {
+        for (int z = 0; z < 40; ++z) {
+            const bool under = x >= 20 && x < 28 && z >= 15 && z < 23;
+            if (!under) b.set(Coord(x, 0, z), Vec3d(0, 1, 0), 0.5f, 0.f);
+        }
+    }
+    for (int x = 20; x < 28; ++x) {
+        for (int y = 1; y <= 8; ++y) {
+            for (int z = 15; z < 23; ++z) {
+                const Vec3d n(x == 20 ? -1 : x == 27 ? 1 : 0, y == 8 ? 1 : 0,
+                    z == 15 ? -1 : z == 22 ? 1 : 0);
+                if (n != Vec3d(0.0)) b.set(Coord(x, y, z), n, 0.5f, 0.f);
+            }
+        }
+    }
+    const Scene scene = b.build();
+    const int W = 256, H = 128, col = 100, row = 30;
+    const float background = 0.1f, peak = 5000.f;
+    const Sky map = Sky::fromMap(W, H, latLong(W, [&](int c, int r) {
+        return Vec3f(c == col && r == row ? peak : background);
+    }), 1);
+    ASSERT_TRUE(map.sun());
+    // The pixel's centre (Sky.h's layout), its solid angle, and a disk of that solid angle.
+    const double theta = kPi * (row + 0.5) / H, phi = 2.0 * kPi * (0.5 - (col + 0.5) / W);
+    const double omega = (std::cos(kPi * row / H) - std::cos(kPi * (row + 1) / H)) * 2.0 * kPi / W;
+    Sun sun;
+    sun.zenith = theta * 180.0 / kPi;
+    sun.azimuth = phi * 180.0 / kPi;
+    sun.irradiance = Vec3d((peak - background) * omega);
+    sun.diameter = 2.0 * std::acos(1.0 - omega / (2.0 * kPi)) * 180.0 / kPi;
+    EXPECT_NEAR(map.sun()->zenith, sun.zenith, 1e-9);
+    EXPECT_NEAR(map.sun()->azimuth, sun.azimuth, 1e-9);
+    EXPECT_NEAR(map.sun()->irradiance[0], sun.irradiance[0], 1e-6 * sun.irradiance[0]);
+    EXPECT_NEAR(map.sun()->diameter, sun.diameter, 1e-9);
+
+    RadiosityOptions o;
+    o.directions = 100;
+    o.tolerance = 0.0;
+    o.maxIterations = 4;
+    o.sky = map;
+    o.sun = *map.sun();
+    const std::vector<Vec3f> fromMap = solvedColours(scene, o);
+    o.sky = Sky::uniform(Vec3d(background));
+    o.sun = sun;
+    const std::vector<Vec3f> explicitSun = solvedColours(scene, o);
+    const double gap = relativeGap(fromMap, explicitSun);
+    std::cout << "  one-pixel map vs uniform sky + sun: " << gap << "\n";
+    EXPECT_LT(gap, 1e-5);
+    // Not trivially equal: the sun dominates, and the box shades part of the floor.
+    size_t shaded = 0;
+    for (const Vec3f& v : explicitSun) shaded += v[0] < 0.5 * explicitSun[0][0];
+    EXPECT_GT(shaded, 20u);
+}
+
+// Turning the scene's transform and the map together about the up axis changes nothing: the
+// index-space directions see the same cells of the map.
+TEST_F(DirectTest, TurningTheMapWithTheSceneChangesNothing)
+{
+    const SceneBuilder cup = cupOf(0.6f);
+    // A coloured map with detail in azimuth and elevation (no sun).
+    const int W = 128;
+    const std::vector<Vec3f> pixels = latLong(W, [&](int c, int r) {
+        const double a = 2.0 * kPi * (c + 0.5) / W, e = kPi * (r + 0.5) / (W / 2);
+        return Vec3f(float(0.3 + 0.25 * std::sin(a) * std::cos(e)),
+            float(0.4 + 0.3 * std::cos(2 * a) * std::sin(e)), float(0.5 + 0.4 * std::cos(e)));
+    });
+    RadiosityOptions o;
+    o.tolerance = 0.0;
+    o.maxIterations = 5;
+    o.sky = Sky::fromMap(W, W / 2, pixels, 1);
+    EXPECT_TRUE(o.sky.isRgb());
+    const std::vector<Vec3f> still = solvedColours(cup.build(), o);
+
+    // World = R index, R a quarter turn about y; the map turned by the same angle (the azimuth
+    // R gives the index x axis, from x towards z).
+    openvdb::GridPtrVec grids = cup.grids();
+    // Written out (not postRotate's cos(pi/2) = 6e-17), so that normals stay exactly on the
+    // axes: a normal component of 1e-17 would make a voxel face directions it is edge-on to.
+    const auto turned = openvdb::math::Transform::createLinearTransform(openvdb::math::Mat4d(
+        0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, 0, 1));
+    for (auto& g : grids) g->setTransform(turned->copy());
+    // The `normal` grid holds world normals: turned too.
+    auto normals = openvdb::gridPtrCast<openvdb::Vec3SGrid>(grids[0]);
+    for (auto it = normals->beginValueOn(); it; ++it) {
+        it.setValue(openvdb::Vec3s(turned->baseMap()->applyJacobian(Vec3d(*it))));
+    }
+    const Vec3d x = turned->baseMap()->applyJacobian(Vec3d(1, 0, 0));
+    const double degrees = std::atan2(x.z(), x.x()) * 180.0 / kPi;
+    EXPECT_NEAR(std::abs(degrees), 90.0, 1e-9);
+    const Scene turnedCup = buildScene(grids);
+    // The scene alone turned: it sees another part of the map.
+    const double alone = relativeGap(solvedColours(turnedCup, o), still);
+    o.sky = Sky::fromMap(W, W / 2, pixels, 1, degrees);
+    const double gap = relativeGap(solvedColours(turnedCup, o), still);
+    std::cout << "  map and scene turned together: " << gap << " (the scene alone: " << alone
+              << ")\n";
+    EXPECT_LT(gap, 1e-6);
+    EXPECT_GT(alone, 0.05);
+}
+
+// Preetham's clear sky over an open floor: the floor sees the whole upper hemisphere and
+// nothing else, so B = rho E, E the sky's horizontal irradiance (integrated independently,
+// Sky::horizontalIrradiance); blue above, and its zenith's luminance Preetham's Y_z.
+TEST_F(DirectTest, ClearSkyOnAnOpenFloorIsRhoTimesItsIrradiance)
+{
+    SceneBuilder b;
+    for (int x = 0; x < 30; ++x) {
+        for (int z = 0; z < 30; ++z) b.set(Coord(x, 0, z), Vec3d(0, 1, 0), 0.5f, 0.f);
+    }
+    const Scene floor = b.build();
+    RadiosityOptions o;
+    o.sky = Sky::clear(40.0, 30.0, 1, 3.0, 0.2);
+    const Vec3d E = o.sky.horizontalIrradiance();
+    const std::vector<Vec3f> B = solvedColours(floor, o);
+    ASSERT_EQ(B.size(), 900u);
+    double worst = 0.0;
+    for (const Vec3f& v : B) {
+        for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(v[c] / (0.5 * E[c]) - 1.0));
+    }
+    std::cout << "  clear sky on a floor: E " << E << ", worst |B / (rho E) - 1| " << worst << "\n";
+    EXPECT_LT(worst, 0.01);
+    EXPECT_GT(E[2], E[0]);   // a blue sky
+    // Y_z = (4.0453 T - 4.9710) tan chi - 0.2155 T + 2.4192, chi = (4/9 - T/120)(pi - 2 theta_s):
+    // T = 3, theta_s = 40 degrees: chi = 0.419444 x 1.745329 = 0.732069, tan chi = 0.898650,
+    // Y_z = 7.1649 x 0.898650 + 1.7727 = 8.2114 kcd/m^2.
+    const Vec3d zenith = o.sky.radiance(Vec3d(0, 1, 0));
+    EXPECT_NEAR(0.2126 * zenith[0] + 0.7152 * zenith[1] + 0.0722 * zenith[2], 8.2114, 2e-3);
 }

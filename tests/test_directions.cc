@@ -233,6 +233,70 @@ TEST(DirectionSet, MatchesBruteForceSurfels)
     }
 }
 
+// cellOf (Sky::cellMeans' cells): the surfel a ray from the origin crosses, found by testing
+// the ray against every boundary surfel of B_R, and the cells' measured areas against the
+// surfels' exact solid angles.
+TEST(DirectionSet, CellOfIsTheSurfelTheRayCrosses)
+{
+    for (const int r : {1, 3, 6}) {
+        const DirectionSet set = DirectionSet::fromRadius(r);
+        const int64_t r2 = int64_t(r) * r;
+        Rng rng{uint64_t(77 + r)};
+        for (int t = 0; t < 3000; ++t) {
+            const Vec3d d = rng.unitVector();
+            // The face (of a voxel inside, towards one outside) whose square the ray meets.
+            Coord owner;
+            int crossed = 0;
+            for (int x = -r; x <= r; ++x) {
+                for (int y = -r; y <= r; ++y) {
+                    for (int z = -r; z <= r; ++z) {
+                        const Coord p(x, y, z);
+                        if (norm2(p) > r2) continue;
+                        for (int m = 0; m < 3; ++m) {
+                            for (int sgn = -1; sgn <= 1; sgn += 2) {
+                                Coord q = p;
+                                q[m] += sgn;
+                                if (norm2(q) <= r2) continue;
+                                const double w = p[m] + 0.5 * sgn;
+                                if (d[m] == 0.0 || w / d[m] <= 0.0) continue;
+                                const Vec3d hit = d * (w / d[m]);
+                                const int a = (m + 1) % 3, b = (m + 2) % 3;
+                                if (std::abs(hit[a] - p[a]) <= 0.5 && std::abs(hit[b] - p[b]) <= 0.5) {
+                                    owner = p;
+                                    ++crossed;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            ASSERT_EQ(crossed, 1) << d << " at R = " << r;   // random rays miss the edges
+            const int g = std::gcd(std::gcd(std::abs(owner.x()), std::abs(owner.y())),
+                std::abs(owner.z()));
+            const Coord primitive(owner.x() / g, owner.y() / g, owner.z() / g);
+            const Coord sigma = canonicalPrimitive(owner);
+            const bool negative = primitive != sigma;
+            size_t k = 0;
+            while (k < set.size() && set.direction(k) != sigma) ++k;
+            ASSERT_LT(k, set.size());
+            EXPECT_EQ(set.cellOf(d), 2 * k + (negative ? 1 : 0)) << d << " at R = " << r;
+        }
+    }
+    // Areas: 400,000 random directions; each cell's share times 4 pi against its solid angle
+    // pi A (binomial: within 5 standard deviations).
+    const DirectionSet set = DirectionSet::fromRadius(5);
+    std::vector<size_t> count(2 * set.size(), 0);
+    Rng rng{5};
+    const size_t samples = 400000;
+    for (size_t t = 0; t < samples; ++t) ++count[set.cellOf(rng.unitVector())];
+    for (size_t c = 0; c < count.size(); ++c) {
+        const double p = kPi * set.factor(c / 2) / (4.0 * kPi);
+        const double sd = std::sqrt(p * (1.0 - p) / double(samples));
+        EXPECT_NEAR(double(count[c]) / double(samples), p, 5.0 * sd) << "cell " << c;
+    }
+    EXPECT_THROW(set.cellOf(Vec3d(0.0)), openvdb::ValueError);
+}
+
 TEST(DirectionSet, FactorsSumToTwoAndArePositive)
 {
     for (int r : {1, 2, 3, 5, 8, 16, 32, 64, 100, 400}) {

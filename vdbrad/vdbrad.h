@@ -27,6 +27,8 @@
 #include "vdbrad/scene/Cloud.h"
 #include "vdbrad/scene/OutputGrids.h"
 #include "vdbrad/scene/Scene.h"
+#include "vdbrad/scene/Sky.h"
+#include "vdbrad/scene/Sun.h"
 #include "vdbrad/scene/SurfaceExtraction.h"
 #include "vdbrad/surface/RadiositySolver.h"
 #include "vdbrad/sweep/DirectionSet.h"

@@ -9,7 +9,7 @@ namespace vdbrad {
 
 namespace {
 
-constexpr char kMagic[8] = {'V', 'D', 'B', 'R', 'A', 'D', 'C', 'K'};
+constexpr char kCheckpointMagic[8] = {'V', 'D', 'B', 'R', 'A', 'D', 'C', 'K'};
 constexpr uint32_t kVersion = 1;
 
 template<typename T> constexpr uint8_t typeTag();
@@ -135,7 +135,7 @@ SolverState::serialize(uint64_t fingerprint) const
     if (!littleEndian()) {
         OPENVDB_THROW(openvdb::NotImplementedError, "checkpoints need a little-endian machine");
     }
-    std::string out(kMagic, sizeof kMagic);
+    std::string out(kCheckpointMagic, sizeof kCheckpointMagic);
     append(out, kVersion);
     append(out, fingerprint);
     append(out, uint32_t(mSections.size()));
@@ -156,10 +156,10 @@ SolverState::parse(const std::string& bytes, uint64_t fingerprint)
     if (!littleEndian()) {
         OPENVDB_THROW(openvdb::NotImplementedError, "checkpoints need a little-endian machine");
     }
-    if (bytes.size() < sizeof kMagic || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) {
+    if (bytes.size() < sizeof kCheckpointMagic || std::memcmp(bytes.data(), kCheckpointMagic, sizeof kCheckpointMagic) != 0) {
         OPENVDB_THROW(openvdb::IoError, "not a vdbrad checkpoint");
     }
-    if (bytes.size() < sizeof kMagic + 4 + 8 + 4 + 8) {
+    if (bytes.size() < sizeof kCheckpointMagic + 4 + 8 + 4 + 8) {
         OPENVDB_THROW(openvdb::IoError, "truncated checkpoint");
     }
     uint64_t stored;
@@ -168,7 +168,7 @@ SolverState::parse(const std::string& bytes, uint64_t fingerprint)
         OPENVDB_THROW(openvdb::IoError, "corrupt or truncated checkpoint (checksum mismatch)");
     }
     const std::string body = bytes.substr(0, bytes.size() - 8);
-    Cursor c{body, sizeof kMagic};
+    Cursor c{body, sizeof kCheckpointMagic};
     const uint32_t version = c.read<uint32_t>();
     if (version != kVersion) {
         OPENVDB_THROW(openvdb::IoError, "checkpoint format " << version << ", this vdbrad reads "

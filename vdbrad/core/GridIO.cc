@@ -66,7 +66,7 @@ private:
 };
 
 // "VDB " as the little-endian int64 OpenVDB writes first (io/Archive.cc: OPENVDB_MAGIC).
-constexpr unsigned char kMagic[8] = {0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0};
+constexpr unsigned char kVdbMagic[8] = {0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0};
 
 std::string
 systemError(const std::string& what, const std::string& path)
@@ -140,14 +140,14 @@ VdbFile
 parseVdb(const std::string& bytes)
 {
     if (bytes.empty()) OPENVDB_THROW(openvdb::IoError, "empty file");
-    if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
+    if (bytes.size() < sizeof(kVdbMagic) || std::memcmp(bytes.data(), kVdbMagic, sizeof(kVdbMagic)) != 0) {
         OPENVDB_THROW(openvdb::IoError, "not a VDB file (bad magic number)");
     }
     // OpenVDB 10 reads a file from a newer version as its own, with a warning, and garbage
     // results; older than the root-node map, it allocates gigabytes before failing.
     uint32_t version = 0;
-    if (bytes.size() >= sizeof(kMagic) + sizeof(version)) {
-        std::memcpy(&version, bytes.data() + sizeof(kMagic), sizeof(version));
+    if (bytes.size() >= sizeof(kVdbMagic) + sizeof(version)) {
+        std::memcpy(&version, bytes.data() + sizeof(kVdbMagic), sizeof(version));
     }
     if (version < openvdb::OPENVDB_FILE_VERSION_ROOTNODE_MAP
         || version > openvdb::OPENVDB_FILE_VERSION) {

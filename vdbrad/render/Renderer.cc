@@ -177,6 +177,7 @@ struct Renderer::Gather
     {
         DirectLightOptions d;
         d.samples = options.directSamples;
+        d.sun = options.sun;
         return d;
     }
     Emitters emitters;
@@ -293,7 +294,10 @@ struct Renderer::Tracer
                 rays(s));
             // A closed room's voxel leaving through its own cube: a digitisation crack.
             if (hit == kRaySky && closed) continue;
-            if (hit < kRayBack) {
+            if (hit == kRaySky && !mR.mOptions.sky.empty()) {
+                sum += mR.mOptions.sky.radiance(scene.transform().baseMap()->applyJacobian(
+                    rays(s))) * kPi;
+            } else if (hit < kRayBack) {
                 sum += mR.mGlossy ? mR.mGlossy->sent(hit, -rays(s), g.reflected[hit])
                                   : g.reflected[hit];
             }
@@ -473,7 +477,9 @@ struct Renderer::Tracer
         double T = 1.0;
         if (mR.mHasCloud) throughCloud(eye, dir, t0, hit ? tHit : t1, L, T);
         if (T < kOpaque) T = 0.0;
-        const Vec3f behind = hit ? surface : mR.mOptions.background;
+        const Vec3f behind = hit ? surface
+            : mR.mOptions.sky.empty() ? mR.mOptions.background
+                                      : Vec3f(mR.mOptions.sky.radiance(dir) * kPi);
         coverage = hit ? 1.f : float(1.0 - T);
         return Vec3f(L + Vec3d(behind) * T);
     }

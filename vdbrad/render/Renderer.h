@@ -31,6 +31,8 @@
 #include "vdbrad/mesh/Mesh.h"
 #include "vdbrad/scene/Cloud.h"
 #include "vdbrad/scene/Scene.h"
+#include "vdbrad/scene/Sky.h"
+#include "vdbrad/scene/Sun.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/math/Ray.h>
@@ -55,6 +57,12 @@ struct RenderOptions
     int width = 640, height = 480;   ///< pixels, each in [1, 16384]
     std::optional<Camera> camera;    ///< none: defaultCamera() of the scene's bounds
     openvdb::Vec3f background{0.f};  ///< what rays that hit nothing see (linear, finite)
+    /// The light from outside the scene it was solved with (Sky.h), or none: rays that hit
+    /// nothing see pi times its radiance (radiosity units) instead of the background, and the
+    /// final gather's rays that leave the scene gather it.
+    Sky sky;
+    /// The sun it was solved with: the final gather's direct light includes it.
+    std::optional<Sun> sun;
     /// n: n x n sub-pixel samples on a regular grid (stratum centres), averaged; in [1, 16].
     int samplesPerPixel = 1;
     SceneOptions scene;              ///< how to read the surface: the same as for the solve

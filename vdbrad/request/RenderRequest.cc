@@ -41,7 +41,8 @@ renderImageOptions()
             "highlights; 0: the lobes' light the same from every direction"}
             .within(0, 65536),
         {"background", OptionType::String, "0,0,0", "0.2,0.3,0.5",
-            "linear RGB seen where rays hit nothing"},
+            "linear RGB seen where rays hit nothing, for a file solved without a sky (one "
+            "solved under --sky, --sky-model or --environment shows that sky)"},
         OptionSpec{"extinction-scale", OptionType::Float, "1", "10",
             "clouds: multiplies the density grid, as for the cloud solve"}.above(0),
         options::density(),

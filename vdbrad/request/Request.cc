@@ -116,6 +116,19 @@ Request::numbers(const std::string& name, size_t count, const std::string& shape
     return values;
 }
 
+openvdb::math::Vec3d
+Request::colour(const std::string& name) const
+{
+    const std::vector<double> v = numbers(name, 0, "one number or r,g,b");
+    if (v.size() != 1 && v.size() != 3) {
+        fail(spell(name) + " needs one number (grey) or three (r,g,b), got '" + getString(name)
+            + "'");
+    }
+    const openvdb::Vec3d c = v.size() == 1 ? openvdb::Vec3d(v[0]) : openvdb::Vec3d(v[0], v[1], v[2]);
+    if (c[0] < 0.0 || c[1] < 0.0 || c[2] < 0.0) fail(spell(name) + " must be >= 0");
+    return c;
+}
+
 double
 Request::bytes(const std::string& name, bool zero) const
 {

@@ -9,6 +9,8 @@
 
 #include "vdbrad/request/OptionSpec.h"
 
+#include <openvdb/math/Vec3.h>
+
 #include <map>
 #include <optional>
 #include <string>
@@ -50,6 +52,8 @@ public:
     /// they are in the message.
     std::vector<double> numbers(const std::string& name, size_t count,
         const std::string& shape) const;
+    /// A linear colour: one number (grey) or "r,g,b", each >= 0.
+    openvdb::math::Vec3d colour(const std::string& name) const;
     /// A size in bytes ("512M", "8G", "1000000"; binary units), > 0 or, if @a zero, >= 0.
     double bytes(const std::string& name, bool zero) const;
     /// "auto" (nullopt) or a whole number in [lo, hi] (@a what it counts).

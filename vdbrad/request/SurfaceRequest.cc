@@ -2,16 +2,22 @@
 
 #include "vdbrad/request/SharedOptions.h"
 
+#include "vdbrad/core/Errors.h"
 #include "vdbrad/core/GridContract.h"
 #include "vdbrad/distribute/Distribution.h"
 #include "vdbrad/glossy/Brdf.h"
 #include "vdbrad/glossy/ControlPoints.h"
+#include "vdbrad/render/ImageIO.h"
+#include "vdbrad/scene/Sky.h"
 #include "vdbrad/sweep/Acceleration.h"
 #include "vdbrad/sweep/DirectionSet.h"
 
 #include <openvdb/Exceptions.h>
 
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <optional>
 #include <sstream>
 #include <utility>
@@ -99,20 +105,36 @@ solverOptions()
 }
 
 std::vector<OptionSpec>
-sunOptions()
+lightOptions()
 {
     return {
-        OptionSpec{"sky", OptionType::Float, "", "0.3",
-            "a uniform sky of this radiance: what a voxel facing the outside receives from "
-            "each direction in which it sees no voxel (pi x radiance x that share; diffuse "
-            "scenes)"}.atLeast(0),
+        {"sky", OptionType::String, "", "0.3",
+            "a uniform sky of this radiance (grey, or linear r,g,b): what a voxel facing the "
+            "outside receives from each direction in which it sees no voxel (diffuse scenes)"},
+        OptionSpec{"sky-model", OptionType::String, "uniform", "clear",
+            "uniform: --sky's radiance; clear: Preetham's clear sky for the --sun's position "
+            "(as Blender's Sky Texture 'Preetham': luminance in kcd/m^2 as radiance, so a "
+            "clear day's sun is about --irradiance 100) over a uniform ground"}
+            .oneOf({"uniform", "clear"}),
+        OptionSpec{"turbidity", OptionType::Float, "3", "2",
+            "--sky-model clear: the haze (2 very clear, 3 clear, 6 hazy)"}.within(1, 10),
+        OptionSpec{"ground-albedo", OptionType::Float, "0.2", "0.3",
+            "--sky-model clear: the ground below the horizon reflects the sky's and the sun's "
+            "light with this albedo"}.within(0, 1),
+        {"environment", OptionType::String, "", "sky.exr",
+            "a latitude-longitude HDR map (OpenEXR, linear RGB) lighting the scene from outside: "
+            "each direction takes the map's mean over its own cell; a sun in it (a small region "
+            "100x brighter than the median) is split off and computed exactly as --sun is"},
+        {"environment-rotation", OptionType::Float, "0", "90",
+            "--environment: turns the map about the --up axis, degrees (0: the map's centre "
+            "column looks along the first horizontal axis, as Blender's Environment Texture)"},
         {"sun", OptionType::String, "", "40,30",
             "a sun: zenith angle from the --up axis, in [0, 90), and azimuth from the first "
             "horizontal axis towards the second (up y: x then z), degrees, as for solve-cloud; "
             "its first collision computed exactly with shadow rays (a soft shadow from its "
             "disk), its reflections carried by the sweeps"},
-        OptionSpec{"irradiance", OptionType::Float, "1", "3",
-            "--sun: irradiance on a plane normal to the beam"}.atLeast(0),
+        {"irradiance", OptionType::String, "1", "3",
+            "--sun: irradiance on a plane normal to the beam (grey, or linear r,g,b)"},
         OptionSpec{"sun-diameter", OptionType::Float, "0.53", "2",
             "--sun: the disk's angular diameter, degrees (the penumbra's width)"}.within(0, 10),
         options::up(),
@@ -124,7 +146,7 @@ std::optional<Sun>
 sunOf(const Request& r, const std::string& method, DirectMode direct)
 {
     if (!r.has("sun")) {
-        for (const char* name : {"irradiance", "sun-diameter", "up"}) {
+        for (const char* name : {"irradiance", "sun-diameter"}) {
             if (r.has(name)) r.fail(r.spell(name) + " needs " + r.spell("sun"));
         }
         return std::nullopt;
@@ -137,7 +159,7 @@ sunOf(const Request& r, const std::string& method, DirectMode direct)
         r.fail(r.spell("sun") + ": the zenith angle must be in [0, 90) degrees");
     }
     sun.up = r.choice<int>("up", {{"x", 0}, {"y", 1}, {"z", 2}});
-    sun.irradiance = r.getFloat("irradiance");
+    sun.irradiance = r.colour("irradiance");
     sun.diameter = r.getFloat("sun-diameter");
     if (method == "montecarlo") {
         r.fail(r.spell("sun") + " does not apply to " + r.spell("method") + " montecarlo");
@@ -147,6 +169,100 @@ sunOf(const Request& r, const std::string& method, DirectMode direct)
             + " exact or auto");
     }
     return sun;
+}
+
+// The latitude-longitude map of --environment, from its file.
+Sky
+environmentOf(const Request& r)
+{
+    const std::string path = r.getString("environment");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) r.fail(r.spell("environment") + ": cannot open '" + path + "'");
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    Image map;
+    try {
+        map = decodeExr(bytes);
+    } catch (const openvdb::Exception& e) {
+        r.fail(r.spell("environment") + ": '" + path + "' is not a readable OpenEXR image ("
+            + errorMessage(e) + ")");
+    }
+    if (map.width != 2 * map.height) {
+        r.fail(r.spell("environment") + ": '" + path + "' is " + std::to_string(map.width) + " x "
+            + std::to_string(map.height) + " pixels; a latitude-longitude map is twice as wide "
+            "as it is high");
+    }
+    try {
+        return Sky::fromMap(map.width, map.height, map.pixels,
+            r.choice<int>("up", {{"x", 0}, {"y", 1}, {"z", 2}}), r.getFloat("environment-rotation"));
+    } catch (const openvdb::ValueError& e) {
+        r.fail(r.spell("environment") + ": '" + path + "': " + errorMessage(e));
+    }
+}
+
+// The light options, and the metadata naming them on a solved file (solvedLight()).
+const char* const kLightOptions[] = {"sky", "sky-model", "turbidity", "ground-albedo",
+    "environment", "environment-rotation", "sun", "irradiance", "sun-diameter", "up"};
+const char* const kLightMeta = "vdbrad:light";
+
+std::string
+lightText(const Request& r)
+{
+    std::string text;
+    for (const char* name : kLightOptions) {
+        if (!r.has(name)) continue;
+        std::string value = r.getString(name);
+        // The map from wherever the picture is made.
+        if (std::string(name) == "environment") value = std::filesystem::absolute(value).string();
+        text += std::string(name) + "=" + value + "\n";
+    }
+    return text;
+}
+
+// The light from outside the scene: --sky, --sky-model, --environment, --sun; the map's sun,
+// if it has one, becomes the solve's.
+void
+lightOf(const Request& r, const std::string& method, RadiosityOptions& o)
+{
+    o.sun = sunOf(r, method, o.direct);
+    const bool clear = r.getString("sky-model") == "clear";
+    for (const char* name : {"turbidity", "ground-albedo"}) {
+        if (r.has(name) && !clear) r.fail(r.spell(name) + " needs " + r.spell("sky-model") + " clear");
+    }
+    if (r.has("environment-rotation") && !r.has("environment")) {
+        r.fail(r.spell("environment-rotation") + " needs " + r.spell("environment"));
+    }
+    if (r.has("up") && !r.has("sun") && !r.has("environment")) {
+        r.fail(r.spell("up") + " needs " + r.spell("sun") + " or " + r.spell("environment"));
+    }
+    const int given = int(r.has("sky")) + int(clear) + int(r.has("environment"));
+    if (given > 1) {
+        r.fail("one sky at a time: " + r.spell("sky") + ", " + r.spell("sky-model")
+            + " clear or " + r.spell("environment"));
+    }
+    if (given == 0) return;
+    if (method == "montecarlo") {
+        r.fail("a sky does not apply to " + r.spell("method") + " montecarlo");
+    }
+    if (r.has("sky")) {
+        o.sky = Sky::uniform(r.colour("sky"));
+    } else if (clear) {
+        if (!o.sun) r.fail(r.spell("sky-model") + " clear needs " + r.spell("sun") + " (its position)");
+        o.sky = Sky::clear(o.sun->zenith, o.sun->azimuth, o.sun->up, r.getFloat("turbidity"),
+            r.getFloat("ground-albedo"), o.sun->irradiance);
+    } else {
+        o.sky = environmentOf(r);
+        if (const auto& sun = o.sky.sun()) {
+            if (o.sun) {
+                r.fail(r.spell("environment") + " holds a sun (" + o.sky.describe() + "); "
+                    + r.spell("sun") + " would add a second");
+            }
+            if (o.direct == DirectMode::Sweep) {
+                r.fail(r.spell("environment") + " holds a sun, computed exactly: it needs "
+                    + r.spell("direct") + " exact or auto");
+            }
+            o.sun = *sun;
+        }
+    }
 }
 
 // The glossy settings of @a r: --brdf, --control-points or --harmonics, --glossy-rotation.
@@ -210,7 +326,7 @@ const std::vector<OptionSpec>&
 surfaceSolveOptions()
 {
     static const std::vector<OptionSpec> table = concat(concat(concat(concat(options::scene(),
-        solverOptions()), sunOptions()), options::checkpoints()), options::resources());
+        solverOptions()), lightOptions()), options::checkpoints()), options::resources());
     return table;
 }
 
@@ -248,13 +364,7 @@ SurfaceSolve::SurfaceSolve(const Request& r, const Distribution* ranks)
     o.direct = r.choice<DirectMode>("direct", {{"auto", DirectMode::Auto},
         {"exact", DirectMode::Exact}, {"sweep", DirectMode::Sweep}});
     o.directSamples = r.getInt("direct-samples");
-    o.sun = sunOf(r, mMethod, o.direct);
-    if (r.has("sky")) {
-        o.sky = r.getFloat("sky");
-        if (mMethod == "montecarlo") {
-            r.fail(r.spell("sky") + " does not apply to " + r.spell("method") + " montecarlo");
-        }
-    }
+    lightOf(r, mMethod, o);
     o.glossy = glossyOptions(r);
     if (mMethod == "montecarlo") checkMonteCarlo(r, o);
     const std::string cache = r.getString("visibility-cache");
@@ -278,11 +388,14 @@ SurfaceSolve::read(const openvdb::GridPtrVec& grids,
     for (const auto& g : grids) mInputBytes += double(g->memUsage());
     mRead = true;
     // Unlit, the answer is 0 everywhere: refused before any time is spent on it.
-    const bool sunlit = mOptions.sun && mOptions.sun->irradiance > 0.0;
-    if (!mScene.hasEmission() && !sunlit && !(mOptions.sky > 0.0)) {
+    const bool sunlit = mOptions.sun && mOptions.sun->irradiance.length() > 0.0;
+    const bool skylit = !mOptions.sky.empty()
+        && (mOptions.sky.kind() != Sky::Kind::Uniform
+            || mOptions.sky.radiance(openvdb::Vec3d(0, 0, 1)).length() > 0.0);
+    if (!mScene.hasEmission() && !sunlit && !skylit) {
         OPENVDB_THROW(openvdb::ValueError, "nothing lights the scene: no voxel emits (an "
-            "`emission` grid, MTL Ke) and there is no " + r.spell("sun") + " or "
-            + r.spell("sky"));
+            "`emission` grid, MTL Ke) and there is no " + r.spell("sun") + ", "
+            + r.spell("sky") + " or " + r.spell("environment"));
     }
     if (mScene.raisedRoughness() > 0) {
         mWarnings.push_back(std::to_string(mScene.raisedRoughness()) + " glossy voxels have a "
@@ -305,9 +418,9 @@ SurfaceSolve::read(const openvdb::GridPtrVec& grids,
             OPENVDB_THROW(openvdb::ValueError, "glossy surfaces need " + r.spell("update")
                 + " inplace or jacobi");
         }
-        if (mOptions.sky > 0.0) {
-            OPENVDB_THROW(openvdb::ValueError, "a " + r.spell("sky") + " on glossy surfaces "
-                "(a `specular` grid) is not solved yet");
+        if (!mOptions.sky.empty()) {
+            OPENVDB_THROW(openvdb::ValueError, "a sky on glossy surfaces (a `specular` grid) "
+                "is not solved yet");
         }
     }
     if (findGrid(grids, names::kDensity)) {
@@ -356,7 +469,11 @@ SurfaceSolve::run(openvdb::util::NullInterrupter* interrupt, SolveControl contro
         // Given up: with slabs, the ranks other than 0 free it once their slab is set up.
         openvdb::GridBase::Ptr radiosity = solveRadiosity(std::move(mScene), mOptions, interrupt,
             control, &specular);
-        if (radiosity) result.grids.push_back(radiosity);
+        if (radiosity) {
+            const std::string light = lightText(mRequest);
+            if (!light.empty()) radiosity->insertMeta(kLightMeta, openvdb::StringMetadata(light));
+            result.grids.push_back(radiosity);
+        }
         if (specular) result.grids.push_back(specular);
     }
     result.warnings = mWarnings;
@@ -370,6 +487,32 @@ solveSurfaces(const openvdb::GridPtrVec& grids, const Request& request,
 {
     SurfaceSolve solve(request, ranks);
     return runSteps(solve, grids, interrupt, std::move(control));
+}
+
+OutsideLight
+solvedLight(const openvdb::GridPtrVec& grids, std::vector<std::string>& warnings)
+{
+    OutsideLight light;
+    const openvdb::GridBase::ConstPtr radiosity = findGrid(grids, names::kRadiosity);
+    if (!radiosity) return light;
+    const auto meta = radiosity->getMetadata<openvdb::StringMetadata>(kLightMeta);
+    if (!meta) return light;
+    Request r("solve", surfaceSolveOptions());
+    std::istringstream lines(meta->value());
+    try {
+        for (std::string line; std::getline(lines, line);) {
+            const size_t eq = line.find('=');
+            if (eq == std::string::npos) continue;
+            r.set(line.substr(0, eq), line.substr(eq + 1));
+        }
+        RadiosityOptions o;
+        lightOf(r, "sweep", o);
+        light.sky = o.sky;
+        light.sun = o.sun;
+    } catch (const std::exception& e) {
+        warnings.push_back(std::string("the light it was solved with is not shown: ") + e.what());
+    }
+    return light;
 }
 
 std::string

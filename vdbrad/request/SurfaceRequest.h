@@ -15,6 +15,7 @@
 
 #include <openvdb/util/NullInterrupter.h>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,19 @@ private:
 SolveResult solveSurfaces(const openvdb::GridPtrVec& grids, const Request& request,
     const Distribution* ranks = nullptr, openvdb::util::NullInterrupter* interrupt = nullptr,
     SolveControl control = SolveControl());
+
+/// The light from outside a scene a solve used: its sky (empty: none) and its sun.
+struct OutsideLight
+{
+    Sky sky;
+    std::optional<Sun> sun;
+};
+
+/// @brief The light a solved file was lit by from outside: its radiosity grid's
+/// `vdbrad:light` metadata (the solve's --sky, --sky-model, --environment, --sun and theirs,
+/// one `name=value` per line), read as the solve read them. Nothing if the file has none. A
+/// map that cannot be read any more gives a warning in @a warnings and no sky.
+OutsideLight solvedLight(const openvdb::GridPtrVec& grids, std::vector<std::string>& warnings);
 
 /// @brief The warning a host gives when @a result stopped at the iteration cap short of the
 /// tolerance; empty if it converged.

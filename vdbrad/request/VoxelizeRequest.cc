@@ -68,8 +68,8 @@ std::vector<std::string>
 sceneWarnings(const openvdb::GridPtrVec& grids, const std::string& path)
 {
     if (findGrid(grids, names::kEmission)) return {};
-    return {path + ": nothing emits (no MTL material with Ke > 0): light it with solve's --sun "
-        "or --sky"};
+    return {path + ": nothing emits (no MTL material with Ke > 0): light it with solve's --sun, "
+        "--sky or --environment"};
 }
 
 } // namespace vdbrad

@@ -14,8 +14,9 @@ struct Sun
     double zenith = 0.0, azimuth = 0.0;
     /// The up axis: 0 x, 1 y (Houdini), 2 z (Blender).
     int up = 1;
-    /// On a plane normal to the beam, per world unit squared, >= 0 (grey).
-    double irradiance = 1.0;
+    /// On a plane normal to the beam, per world unit squared, >= 0: linear RGB (grey: equal
+    /// channels, and a grey scene stays grey).
+    openvdb::Vec3d irradiance{1.0};
     /// The disk's angular diameter, degrees, in [0, 10]: the penumbra's width (ours: 0.53).
     double diameter = 0.53;
 };

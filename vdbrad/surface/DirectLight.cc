@@ -241,8 +241,8 @@ DirectLightSampler::sunAt(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t
     Workspace& ws) const
 {
     const double cosine = nx.dot(mToSun);
-    const double E = mOptions.sun->irradiance;
-    if (!(cosine > 0.0) || !(E > 0.0)) return Vec3d(0.0);
+    const Vec3d& E = mOptions.sun->irradiance;
+    if (!(cosine > 0.0) || !(E[0] > 0.0 || E[1] > 0.0 || E[2] > 0.0)) return Vec3d(0.0);
     const Vec3d origin = mPlanes.rayOrigin(self, p);
     // Points of the disk from an R2 sequence shifted per voxel (its own stream of the hash).
     const double shiftU = unitHash(mixHash(h + 0x5157)), shiftV = unitHash(mixHash(h + 0x5158));
@@ -266,9 +266,9 @@ DirectLightSampler::sunAt(const Vec3d& p, const Vec3d& nx, size_t self, uint64_t
     bool mixed = false;
     double visible = share(S, mixed);
     if (mixed) visible = share(kPenumbra * S, mixed);
-    const double irradiance = E * cosine * visible;
-    if (ws.incident && irradiance > 0.0) ws.incident->emplace_back(mToSun, Vec3d(irradiance));
-    return Vec3d(irradiance);
+    const Vec3d irradiance = E * (cosine * visible);
+    if (ws.incident && visible > 0.0) ws.incident->emplace_back(mToSun, irradiance);
+    return irradiance;
 }
 
 // The emitters' share (the file comment).

@@ -61,11 +61,7 @@ checkOptions(const Scene& scene, const RadiosityOptions& options, bool slab)
         OPENVDB_THROW(openvdb::ValueError, "direct-light samples must be >= 1, got "
             << options.directSamples);
     }
-    if (!(options.sky >= 0.0) || !std::isfinite(options.sky)) {
-        OPENVDB_THROW(openvdb::ValueError, "the sky's radiance must be finite and >= 0, got "
-            << options.sky);
-    }
-    if (options.sky > 0.0 && scene.isGlossy()) {
+    if (!options.sky.empty() && scene.isGlossy()) {
         OPENVDB_THROW(openvdb::ValueError, "a sky on glossy surfaces is not solved yet");
     }
     if (const auto& sun = options.sun) {
@@ -74,7 +70,8 @@ checkOptions(const Scene& scene, const RadiosityOptions& options, bool slab)
                 "go through the directions (direct light sweep)");
         }
         if (!(sun->zenith >= 0.0 && sun->zenith < 90.0) || !std::isfinite(sun->azimuth)
-            || !(sun->irradiance >= 0.0) || !std::isfinite(sun->irradiance)
+            || !(sun->irradiance[0] >= 0.0) || !(sun->irradiance[1] >= 0.0)
+            || !(sun->irradiance[2] >= 0.0) || !std::isfinite(sun->irradiance.length())
             || !(sun->diameter >= 0.0 && sun->diameter <= 10.0) || sun->up < 0 || sun->up > 2) {
             OPENVDB_THROW(openvdb::ValueError, "the sun needs a zenith in [0, 90) degrees, a "
                 "finite azimuth, an irradiance >= 0 and a diameter in [0, 10] degrees");
@@ -222,7 +219,13 @@ RadiositySolver::RadiositySolver(const Scene& scene, const RadiosityOptions& opt
     }
 
     impl.wide = impl.slab ? impl.slab->wide : solvesInDouble(scene.albedo(), options.precision);
-    impl.withState(scene.isRgb(), [&](auto& st) {
+    impl.rgb = solvesRgb(scene, options);
+    if (!options.sky.empty()) {
+        // Each direction's cells, pi L: the sky as the radiosity a line starts with.
+        impl.skyCells = options.sky.cellMeans(impl.schedule->directions(), scene.transform());
+        for (openvdb::Vec3f& v : impl.skyCells) v *= float(kPi);
+    }
+    impl.withState(impl.rgb, [&](auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using ValueT = typename decltype(st.B)::value_type;
         st.B.resize(n);
@@ -278,7 +281,7 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
         impl.ranksFor(mOptions).combine(&impl.glossyDirect[0][0], 3 * impl.glossyDirect.size());
     }
     const std::vector<openvdb::Vec3f>& D = impl.direct.irradiance;
-    if (mScene.isRgb()) {
+    if (impl.rgb) {
         std::vector<openvdb::Vec3f> v(n);
         for (size_t i = 0; i < n; ++i) v[i] = mScene.albedo().rgb(i) * D[i];
         impl.reflected = Attribute::fromRgb(std::move(v));
@@ -290,7 +293,7 @@ RadiositySolver::prepareDirect(openvdb::util::NullInterrupter* interrupt)
     impl.directReady = true;
     if (!impl.startFromSource) return;
     impl.startFromSource = false;
-    impl.withState(mScene.isRgb(), [&](auto& st) {
+    impl.withState(impl.rgb, [&](auto& st) {
         using ValueT = typename decltype(st.B)::value_type;
         for (size_t i = 0; i < n; ++i) st.B[i] = value<ValueT>(impl.reflected, i);
         if (mOptions.update == UpdateScheme::Progressive) st.unshot = st.B;
@@ -335,7 +338,7 @@ RadiositySolver::replaceIterate(const std::vector<ValueT>& b)
             << mScene.size() << " voxels");
     }
     Impl& impl = *mImpl;
-    impl.withState(mScene.isRgb(), [&](auto& st) {
+    impl.withState(impl.rgb, [&](auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using T = typename decltype(st.B)::value_type;
         // Only the state of b's kind (grey, RGB) is ever given it (checked by the callers).
@@ -355,14 +358,14 @@ RadiositySolver::replaceIterate(const std::vector<ValueT>& b)
 void
 RadiositySolver::setRadiosity(const std::vector<float>& b)
 {
-    if (mScene.isRgb()) OPENVDB_THROW(openvdb::ValueError, "setRadiosity: the scene is RGB");
+    if (isRgb()) OPENVDB_THROW(openvdb::ValueError, "setRadiosity: the solve is RGB");
     replaceIterate(b);
 }
 
 void
 RadiositySolver::setRadiosity(const std::vector<openvdb::Vec3f>& b)
 {
-    if (!mScene.isRgb()) OPENVDB_THROW(openvdb::ValueError, "setRadiosity: the scene is grey");
+    if (!isRgb()) OPENVDB_THROW(openvdb::ValueError, "setRadiosity: the solve is grey");
     replaceIterate(b);
 }
 
@@ -370,11 +373,12 @@ size_t
 RadiositySolver::memoryEstimate(const Scene& scene, const RadiosityOptions& options, int threads)
 {
     const bool wide = solvesInDouble(scene.albedo(), options.precision);
-    const size_t channels = scene.isRgb() ? 3 : 1, scalar = wide ? 8 : 4;
+    const size_t channels = solvesRgb(scene, options) ? 3 : 1, scalar = wide ? 8 : 4;
     const size_t n = scene.size(), c = channels * scalar, t = size_t(std::max(threads, 1));
     size_t perVoxel = SweepSchedule::bytesPerVoxel(true, true, true);
     perVoxel += 8 + 4;                      // invZ, region
-    if (options.sky > 0.0) perVoxel += 4;   // the share of the sky
+    // The sky's light per voxel, and its sums per group in the first iteration.
+    if (!options.sky.empty()) perVoxel += channels * 4 + size_t(kGroups) * c;
     perVoxel += 2 * c + 4 * c;              // B, the previous B, B in each pattern's order
     if (wide) perVoxel += channels * 4;     // B rounded to float
     perVoxel += size_t(kGroups) * c;        // gathered sums per group
@@ -490,15 +494,12 @@ RadiositySolver::fingerprint() const
         const int64_t direct[2] = {1, mOptions.directSamples};
         h = hashBytes(direct, sizeof direct, h);
     }
-    if (mOptions.sky > 0.0) {
-        // Only solves with a sky hash it (older fingerprints unchanged).
-        const double sky[2] = {2.0, mOptions.sky};
-        h = hashBytes(sky, sizeof sky, h);
-    }
+    // Only solves with a sky hash it (older fingerprints unchanged).
+    if (!mOptions.sky.empty()) h = mOptions.sky.hash(h);
     if (const auto& sun = mOptions.sun) {
         // Only solves with a sun hash it (older fingerprints unchanged).
-        const double light[5] = {sun->zenith, sun->azimuth, double(sun->up), sun->irradiance,
-            sun->diameter};
+        const double light[7] = {sun->zenith, sun->azimuth, double(sun->up),
+            sun->irradiance[0], sun->diameter, sun->irradiance[1], sun->irradiance[2]};
         h = hashBytes(light, sizeof light, h);
     }
     if (mImpl->glossy) {
@@ -525,8 +526,8 @@ RadiositySolver::saveState(SolverState& state) const
     const uint8_t flags[2] = {uint8_t(impl.hitsKnown), uint8_t(impl.gatheredStale)};
     state.put("flags", flags, 2);
     state.put("invZ", impl.invZ);
-    if (mOptions.sky > 0.0) state.put("sky", impl.skyShare);
-    impl.withState(mScene.isRgb(), [&](const auto& st) {
+    if (!mOptions.sky.empty()) state.put("sky", impl.skyIn);
+    impl.withState(impl.rgb, [&](const auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using Scalar = typename StateT::Scalar;
         // Arrays of channels, in the state's precision.
@@ -561,13 +562,13 @@ RadiositySolver::restoreState(const SolverState& state)
     impl.hitsKnown = flags[0] != 0;
     impl.gatheredStale = flags[1] != 0;
     impl.invZ = state.get<double>("invZ", n);
-    if (mOptions.sky > 0.0) {
-        impl.skyShare = state.get<float>("sky");
-        if (!impl.skyShare.empty() && impl.skyShare.size() != n) {
-            OPENVDB_THROW(openvdb::ValueError, "checkpoint's sky shares do not fit the scene");
+    if (!mOptions.sky.empty()) {
+        impl.skyIn = state.get<float>("sky");
+        if (!impl.skyIn.empty() && impl.skyIn.size() != n * (impl.rgb ? 3 : 1)) {
+            OPENVDB_THROW(openvdb::ValueError, "checkpoint's sky light does not fit the scene");
         }
     }
-    impl.withState(mScene.isRgb(), [&](auto& st) {
+    impl.withState(impl.rgb, [&](auto& st) {
         using StateT = std::decay_t<decltype(st)>;
         using Scalar = typename StateT::Scalar;
         constexpr size_t width = StateT::kWidth;
@@ -636,7 +637,7 @@ RadiositySolver::sent(size_t i, const openvdb::Vec3d& toward) const
 {
     const Impl& impl = *mImpl;
     openvdb::Vec3d v(0.0);
-    impl.withState(mScene.isRgb(), [&](const auto& st) {
+    impl.withState(impl.rgb, [&](const auto& st) {
         using T = typename std::decay_t<decltype(st.B)>::value_type;
         T b = st.B[i];
         if (impl.exact) b += value<T>(mScene.emission(), i);
@@ -658,7 +659,7 @@ RadiositySolver::specularRadiosity() const
     if (!impl.glossy) return out;
     out.assign(mScene.size(), openvdb::Vec3f(0.f));
     const size_t P = impl.glossy->points();
-    impl.withState(mScene.isRgb(), [&](const auto& st) {
+    impl.withState(impl.rgb, [&](const auto& st) {
         for (size_t k = 0; k < impl.glossy->size(); ++k) {
             const auto e = impl.glossy->exitance(k, &st.spec[k * P]);
             if constexpr (std::is_arithmetic_v<std::decay_t<decltype(e)>>) {
@@ -671,6 +672,14 @@ RadiositySolver::specularRadiosity() const
     return out;
 }
 bool RadiositySolver::exactDirect() const { return mImpl->exact; }
+bool RadiositySolver::isRgb() const { return mImpl->rgb; }
+
+bool
+solvesRgb(const Scene& scene, const RadiosityOptions& options)
+{
+    const auto grey = [](const openvdb::Vec3d& v) { return v[0] == v[1] && v[1] == v[2]; };
+    return scene.isRgb() || options.sky.isRgb() || (options.sun && !grey(options.sun->irradiance));
+}
 const Emitters& RadiositySolver::emitters() const { return mImpl->emitters; }
 const DirectIrradiance& RadiositySolver::directLight() const { return mImpl->direct; }
 bool RadiositySolver::doublePrecision() const { return mImpl->wide; }
@@ -690,7 +699,7 @@ RadiositySolver::stats() const
 openvdb::GridBase::Ptr
 RadiositySolver::grid() const
 {
-    openvdb::GridBase::Ptr grid = mScene.isRgb() ? makeRadiosityGrid(mScene, rgb(), stats())
+    openvdb::GridBase::Ptr grid = isRgb() ? makeRadiosityGrid(mScene, rgb(), stats())
                                                  : makeRadiosityGrid(mScene, grey(), stats());
     if (mImpl->glossy) {
         grid->insertMeta(meta::kBrdf, openvdb::StringMetadata(brdfModelName(mOptions.glossy.model)));
@@ -713,7 +722,7 @@ RadiositySolver::specularGrid() const
     const std::vector<openvdb::Vec3f> s = specularRadiosity();
     const GlossySurfaces& gl = *mImpl->glossy;
     openvdb::GridBase::Ptr out;
-    if (mScene.isRgb()) {
+    if (isRgb()) {
         auto g = openvdb::Vec3SGrid::create();
         auto acc = g->getAccessor();
         for (size_t k = 0; k < gl.size(); ++k) {
@@ -748,7 +757,7 @@ RadiositySolver::describe() const
     os << ", " << directions().size()
        << " directions (nearest to " << mOptions.directions << "), "
        << stats().lines << " lines"
-       << (mScene.isRgb() ? ", RGB" : "")
+       << (isRgb() ? ", RGB" : "")
        << (mOptions.accelerate == Acceleration::Anderson ? ", Anderson acceleration" : "")
        << (doublePrecision() ? ", double precision" : "");
     if (exactDirect()) {
@@ -765,7 +774,7 @@ RadiositySolver::describe() const
                << " degrees wide)";
         }
     }
-    if (mOptions.sky > 0.0) os << ", a uniform sky of radiance " << mOptions.sky;
+    if (!mOptions.sky.empty()) os << ", " << mOptions.sky.describe();
     if (mImpl->glossy) os << ", " << mImpl->glossy->describe();
     return os.str();
 }

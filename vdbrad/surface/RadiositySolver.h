@@ -29,6 +29,7 @@
 #include "vdbrad/glossy/GlossyOptions.h"
 #include "vdbrad/scene/OutputGrids.h"
 #include "vdbrad/scene/Scene.h"
+#include "vdbrad/scene/Sky.h"
 #include "vdbrad/surface/DirectLight.h"
 #include "vdbrad/sweep/Acceleration.h"
 #include "vdbrad/sweep/DirectionSet.h"
@@ -125,12 +126,12 @@ struct RadiosityOptions
     DirectMode direct = DirectMode::Auto;
     /// Shadow rays per voxel for exact direct light (DirectLightOptions::samples), >= 1.
     int directSamples = 16;
-    /// A uniform sky: the radiance L arriving from every direction in which a voxel facing the
-    /// outside sees nothing (>= 0; 0: none). A voxel receives pi L times its share of the
-    /// directions that met no voxel (measured by the first sweep: Enclosure.h's hit weights),
-    /// so a scene of albedo 1 under it has B = pi L everywhere, whatever its shape. Grey,
-    /// diffuse scenes.
-    double sky = 0.0;
+    /// Light from outside the scene (Sky.h: uniform, clear, or an environment map): a voxel
+    /// facing the outside receives, along each direction whose line leaves the scene from it,
+    /// the sky's mean radiance over that direction's cell (measured by the first sweep, beside
+    /// Enclosure.h's hit weights), so a scene of albedo 1 under a uniform sky L has B = pi L
+    /// everywhere, whatever its shape. Diffuse scenes; an RGB sky makes the solve RGB.
+    Sky sky;
     /// A sun (Sun.h): its first collision is computed exactly with the emitters' (DirectLight.h;
     /// needs DirectMode Exact or Auto), its reflections carried by the sweeps.
     std::optional<Sun> sun;
@@ -144,6 +145,9 @@ struct RadiosityOptions
     /// visibility cache is not used for them.
     GlossyOptions glossy;
 };
+
+/// True if a solve of @a scene with @a options is RGB: the scene is, or the sky or sun is.
+bool solvesRgb(const Scene& scene, const RadiosityOptions& options);
 
 class RadiositySolver : public IterativeSolver
 {
@@ -180,7 +184,10 @@ public:
     const Emitters& emitters() const;
     const DirectIrradiance& directLight() const;
 
-    /// The current radiosity: grey() for a grey scene, rgb() for an RGB one (Scene::isRgb()).
+    /// True if the solution is RGB: the scene's colours are (Scene::isRgb()) or the light
+    /// from outside is (an RGB sky or sun; solvesRgb()).
+    bool isRgb() const;
+    /// The current radiosity: grey() for a grey solve, rgb() for an RGB one (isRgb()).
     /// In double precision, these are B rounded to float.
     const std::vector<float>& grey() const;
     const std::vector<openvdb::Vec3f>& rgb() const;

@@ -77,9 +77,12 @@ struct RadiositySolver::Impl
     std::vector<double> invZ;                            // per voxel: 1 / Z(n)
     Regions regions;                                     // per voxel: the air region it faces
     bool hitsKnown = false;                              // invZ renormalised for closed voxels
-    // RadiosityOptions::sky: per voxel, pi times its share of the directions that met no voxel
-    // (known with the hit weights; empty before, and without a sky).
-    std::vector<float> skyShare;
+    // RadiosityOptions::sky: per direction cell (2k: +sigma, 2k + 1: -sigma) pi times its mean
+    // radiance; per voxel (1 or 3 channels) the light it gathers from the sky, a constant
+    // source measured by the first sweep (empty before, and without a sky).
+    std::vector<openvdb::Vec3f> skyCells;
+    std::vector<float> skyIn;
+    bool rgb = false;                                    // the solve is RGB (solvesRgb())
     bool gatheredStale = false;                          // B was replaced: next step is Jacobi
     bool wide = false;                                   // the state is double (Precision)
     // Exact direct light (DirectLight.h): the iterate is then R = B - E and its source is
@@ -195,7 +198,7 @@ struct RadiositySolver::Impl
         }
         if (!glossy) return;
         const size_t P = glossy->points();
-        withState(scene.isRgb(), [&](const auto& st) {
+        withState(rgb, [&](const auto& st) {
             using T = typename std::decay_t<decltype(st.B)>::value_type;
             if (st.spec.empty()) return;
             for (size_t k = 0; k < glossy->size(); ++k) {

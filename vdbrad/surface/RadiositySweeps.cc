@@ -42,6 +42,17 @@ using namespace detail;   // Precision.h: the state types
 // A glossy voxel's direct light (per channel; grey scenes: equal channels) as the state's type.
 template<typename T> T channelsOf(const openvdb::Vec3d& v) { return T(v[0]); }
 template<> openvdb::Vec3d channelsOf<openvdb::Vec3d>(const openvdb::Vec3d& v) { return v; }
+// An RGB light (the sky's) as a state or accumulator type: grey solves have grey light.
+template<typename T> T lightAs(const openvdb::Vec3f& v)
+{
+    if constexpr (std::is_arithmetic_v<T>) return T(v[0]);
+    else return T(v);
+}
+template<typename T> double channel(const T& v, size_t c)
+{
+    if constexpr (std::is_arithmetic_v<T>) { (void)c; return double(v); }
+    else return double(v[int(c)]);
+}
 } // namespace
 
 constexpr size_t kReplayed = VisibilityCache::kReplayed;
@@ -130,7 +141,7 @@ struct RadiositySolver::Engine
     template<bool Hits, int Glossy>
     static void sweepDirection(RadiositySolver& s, const SweepSchedule::Pattern& pattern,
         size_t k, const std::vector<ValueT>& Bp, std::vector<AccT>& G, std::vector<Scalar>* H,
-        const GlossyLanes& lanes, LineSweep::Workspace<ValueT>& work)
+        std::vector<AccT>* S, const GlossyLanes& lanes, LineSweep::Workspace<ValueT>& work)
     {
         Impl& impl = *s.mImpl;
         const SweepSchedule& schedule = *impl.schedule;
@@ -179,6 +190,8 @@ struct RadiositySolver::Engine
                         }
                     }
                 }
+            } else if constexpr (Hits) {
+                skyMiss(impl, S, x, k, sigmaDotN, c);
             }
         };
         if (impl.rays) {
@@ -220,8 +233,8 @@ struct RadiositySolver::Engine
     // along the direction, receivers splat what they see on its points (GlossySurfaces.h).
     template<bool Hits, int Glossy>
     static void gatherGroup(RadiositySolver& s, int g, const std::vector<ValueT>& Bp,
-        std::vector<AccT>& G, std::vector<Scalar>* H, const GlossyLanes& lanes,
-        SweepProgress& progress)
+        std::vector<AccT>& G, std::vector<Scalar>* H, std::vector<AccT>* S,
+        const GlossyLanes& lanes, SweepProgress& progress)
     {
         Impl& impl = *s.mImpl;
         const SweepSchedule& schedule = *impl.schedule;
@@ -259,6 +272,13 @@ struct RadiositySolver::Engine
                 Impl::Report& report = impl.reports.local();
                 report.seen.resize(n);
                 pattern.sweep->seen(sigma, schedule.reversed(k), report.work, report.seen.data());
+                if (Hits && S) {
+                    const float c = impl.coefficient[k];
+                    const std::vector<float>& facing = report.work.facing;
+                    for (uint32_t x = 0; x < uint32_t(n); ++x) {
+                        if (report.seen[x] == LineSweep::kNone) skyMiss(impl, S, x, k, facing[x], c);
+                    }
+                }
                 impl.cache->offer(k, report.seen.data(), report.code);
                 impl.offered[k] = 1;
                 if (!impl.cache->has(k)) {
@@ -275,7 +295,7 @@ struct RadiositySolver::Engine
                 continue;
             }
             flush();
-            sweepDirection<Hits, Glossy>(s, pattern, k, Bp, G, H, lanes, work);
+            sweepDirection<Hits, Glossy>(s, pattern, k, Bp, G, H, S, lanes, work);
             progress.finished(1);
         }
         flush();
@@ -293,6 +313,17 @@ struct RadiositySolver::Engine
         return w;
     }
 
+    // x, facing the outside along direction k with nothing in sight, gathers the sky's cell
+    // there (the first iteration: a constant source after it). @a S: null without a sky.
+    static void skyMiss(const Impl& impl, std::vector<AccT>* S, uint32_t x, size_t k,
+        float sigmaDotN, float c)
+    {
+        if (!S || sigmaDotN == 0.f) return;
+        // x looks along +sigma (sigma . n > 0): the light comes from there.
+        const openvdb::Vec3f& L = impl.skyCells[2 * k + (sigmaDotN > 0.f ? 0 : 1)];
+        (*S)[x] += lightAs<AccT>(L) * (std::abs(sigmaDotN) * c);
+    }
+
     // Spread::Slabs: the groups @a groups over this rank's slab, each direction's passes
     // chained over the ranks (SlabDistribution.h); each voxel gets gatherGroup()'s sums, in
     // the same order. Diffuse scenes only.
@@ -300,7 +331,7 @@ struct RadiositySolver::Engine
     static void slabGroups(RadiositySolver& s, const std::vector<int>& groups,
         const std::array<std::vector<ValueT>, SweepSchedule::kPatterns>& ordered,
         std::vector<std::vector<AccT>>& gathered, std::vector<std::vector<Scalar>>& hits,
-        SweepProgress& progress)
+        std::vector<std::vector<AccT>>& sky, SweepProgress& progress)
     {
         Impl& impl = *s.mImpl;
         const SweepSchedule& schedule = *impl.schedule;
@@ -325,11 +356,13 @@ struct RadiositySolver::Engine
                 const std::vector<ValueT>& Bp = ordered[SweepSchedule::patternOf(g)];
                 std::vector<AccT>& G = gathered[size_t(g)];
                 std::vector<Scalar>* H = Hits ? &hits[size_t(g)] : nullptr;
+                std::vector<AccT>* S = Hits && !sky[size_t(g)].empty() ? &sky[size_t(g)] : nullptr;
                 const float c = impl.coefficient[k];
                 sweep.slabPass(sigma, reversed, ascending, w, fronts, in.data(), in.size(), out,
                     [&](uint32_t y) { return Bp[y]; },
                     [&](uint32_t x, const ValueT* seen, float sigmaDotN) {
                         if (seen) receive<Hits>(G, H, x, *seen, sigmaDotN, c);
+                        else if (Hits) skyMiss(impl, S, x, k, sigmaDotN, c);
                     });
                 if (!ascending) progress.finished(1);
             },
@@ -339,12 +372,12 @@ struct RadiositySolver::Engine
     }
 
     // Sweep group @a g (of those this rank owns) from @a ordered, B in each pattern's order,
-    // into its accumulator (and with @a measureHits its hit weights; glossy voxels: their
-    // points' splats).
+    // into its accumulator (and with @a measureHits its hit weights and, under a sky, its sky
+    // light; glossy voxels: their points' splats).
     static void sweepGroup(RadiositySolver& s, int g,
         const std::array<std::vector<ValueT>, SweepSchedule::kPatterns>& ordered,
         std::vector<std::vector<AccT>>& gathered, std::vector<std::vector<Scalar>>& hits,
-        bool measureHits, SweepProgress& progress)
+        std::vector<std::vector<AccT>>& sky, bool measureHits, SweepProgress& progress)
     {
         Impl& impl = *s.mImpl;
         Impl::State<ValueT>& st = impl.state<ValueT>();
@@ -373,10 +406,15 @@ struct RadiositySolver::Engine
             }
         }
         if (H) H->assign(n, Scalar(0));
+        std::vector<AccT>* S = nullptr;
+        if (H && !impl.skyCells.empty()) {
+            S = &sky[size_t(g)];
+            S->assign(n, openvdb::zeroVal<AccT>());
+        }
         auto sweepAs = [&](auto kind) {
             constexpr int kKind = decltype(kind)::value;
-            if (H) gatherGroup<true, kKind>(s, g, Bp, G, H, lanes, progress);
-            else gatherGroup<false, kKind>(s, g, Bp, G, H, lanes, progress);
+            if (H) gatherGroup<true, kKind>(s, g, Bp, G, H, S, lanes, progress);
+            else gatherGroup<false, kKind>(s, g, Bp, G, H, S, lanes, progress);
         };
         if (!glossy) {
             sweepAs(std::integral_constant<int, kDiffuse>());
@@ -389,21 +427,29 @@ struct RadiositySolver::Engine
 
     // The first iteration's hit weights: closed-cavity voxels renormalised over the directions
     // that met a voxel (Enclosure.h), glossy ones' lobes likewise.
-    static void applyHitWeights(RadiositySolver& s, const std::vector<std::vector<Scalar>>& hits)
+    static void applyHitWeights(RadiositySolver& s, const std::vector<std::vector<Scalar>>& hits,
+        const std::vector<std::vector<AccT>>& sky)
     {
         Impl& impl = *s.mImpl;
         const SweepSchedule& schedule = *impl.schedule;
         const size_t n = s.mScene.size();
-        const bool sky = s.mOptions.sky > 0.0;
-        if (sky) impl.skyShare.assign(n, 0.f);
+        constexpr size_t kChannels = sizeof(AccT) / sizeof(typename Traits<AccT>::Scalar);
+        const bool lit = !impl.skyCells.empty();
+        if (lit) impl.skyIn.assign(n * kChannels, 0.f);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
             [&](const tbb::blocked_range<size_t>& r) {
                 for (size_t i = r.begin(); i != r.end(); ++i) {
                     double h = 0.0;
                     schedule.sum(hits, i, 1, &h);
                     if (impl.regions.region[i] == 0) {   // faces the outside: keeps its losses
-                        if (sky) {
-                            impl.skyShare[i] = float(kPi * std::max(0.0, 1.0 - h * impl.invZ[i]));
+                        if (lit) {
+                            // What it saw of the sky, normalised as what it saw of the scene.
+                            WideT light = openvdb::zeroVal<WideT>();
+                            schedule.sum(sky, i, 1, &light);
+                            const WideT in = light * impl.invZ[i];
+                            for (size_t c = 0; c < kChannels; ++c) {
+                                impl.skyIn[i * kChannels + c] = float(channel(in, c));
+                            }
                         }
                         continue;
                     }
@@ -486,6 +532,9 @@ struct RadiositySolver::Engine
         std::vector<ValueT>& U = impl.state<ValueT>().unshot;
         const std::vector<ValueT>& source = shooting ? U : B;
         std::vector<std::vector<Scalar>> hits(static_cast<size_t>(kGroups));
+        // ... and, under a sky, the light of the directions that meet nothing.
+        std::vector<std::vector<AccT>> sky(static_cast<size_t>(kGroups));
+        const bool lit = measureHits && !impl.skyCells.empty();
         // Under MPI each rank sweeps its own groups (Distribution.h) and counts only theirs.
         const Distribution& ranks = impl.ranksFor(s.mOptions);
         // With slabs every rank sweeps every direction, over its slab.
@@ -519,17 +568,22 @@ struct RadiositySolver::Engine
                     groups.push_back(g);
                     gathered[size_t(g)].assign(n, openvdb::zeroVal<AccT>());
                     if (measureHits) hits[size_t(g)].assign(n, Scalar(0));
+                    if (lit) sky[size_t(g)].assign(n, openvdb::zeroVal<AccT>());
                 }
-                if (measureHits) slabGroups<true>(s, groups, ordered, gathered, hits, progress);
-                else slabGroups<false>(s, groups, ordered, gathered, hits, progress);
+                if (measureHits) {
+                    slabGroups<true>(s, groups, ordered, gathered, hits, sky, progress);
+                } else {
+                    slabGroups<false>(s, groups, ordered, gathered, hits, sky, progress);
+                }
             } else {
                 schedule.round(progress, "radiosity solve", ranks, inPhase,
                     [&](int g) {
-                        sweepGroup(s, g, ordered, gathered, hits, measureHits, progress);
+                        sweepGroup(s, g, ordered, gathered, hits, sky, measureHits, progress);
                     },
                     [&](int g, int owner) {
                         ranks.share(gathered[size_t(g)], n, owner);
                         if (measureHits) ranks.share(hits[size_t(g)], n, owner);
+                        if (lit) ranks.share(sky[size_t(g)], n, owner);
                         if (glossy) {
                             const size_t count = glossy->size()
                                 * impl.glossySlots[SweepSchedule::patternOf(g)].size();
@@ -540,17 +594,21 @@ struct RadiositySolver::Engine
                         }
                     });
             }
-            if (measureHits) applyHitWeights(s, hits);
+            if (measureHits) applyHitWeights(s, hits, sky);
             // The sky, a constant source once its shares are known: shot once when shooting.
-            const float skyL = (!impl.skyShare.empty() && (!shooting || measureHits))
-                ? float(s.mOptions.sky) : 0.f;
+            const bool skyLit = !impl.skyIn.empty() && (!shooting || measureHits);
+            constexpr size_t kChannels = sizeof(ValueT) / sizeof(Scalar);
             tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
                 [&](const tbb::blocked_range<size_t>& r) {
                     for (size_t i = r.begin(); i != r.end(); ++i) {
                         WideT sum = openvdb::zeroVal<WideT>();
                         schedule.sum(gathered, i, 1, &sum);
                         ValueT incoming = ValueT(sum * impl.invZ[i]);
-                        if (skyL > 0.f) incoming += ValueT(skyL * impl.skyShare[i]);
+                        if (skyLit) {
+                            const float* L = &impl.skyIn[i * kChannels];
+                            if constexpr (kChannels == 1) incoming += ValueT(L[0]);
+                            else incoming += ValueT(L[0], L[1], L[2]);
+                        }
                         if (shooting) {
                             U[i] = value<ValueT>(scene.albedo(), i) * incoming;
                             B[i] += U[i];
@@ -589,7 +647,7 @@ RadiositySolver::iterate(openvdb::util::NullInterrupter* interrupt)
     return mIteration.iterate([&] {
         prepareDirect(interrupt);
         double residual = 0.0;
-        mImpl->withState(mScene.isRgb(), [&](auto& st) {
+        mImpl->withState(mImpl->rgb, [&](auto& st) {
             using ValueT = typename decltype(st.B)::value_type;
             residual = Engine<ValueT>::step(*this, interrupt);
         });

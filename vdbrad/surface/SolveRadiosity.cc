@@ -119,7 +119,7 @@ solveSlabs(const Scene& scene, Scene* owned, const RadiosityOptions& options,
     const double most = ranks.maximum(resident), least = -ranks.maximum(-resident);
 
     // The slabs' radiosity, in slab order, to rank 0.
-    const bool rgb = slab.isRgb();
+    const bool rgb = solver.isRgb();
     const void* data = rgb ? static_cast<const void*>(solver.rgb().data())
                            : static_cast<const void*>(solver.grey().data());
     const size_t width = rgb ? sizeof(openvdb::Vec3f) : sizeof(float);

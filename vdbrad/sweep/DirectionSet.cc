@@ -33,6 +33,7 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <numeric>
 #include <string>
 #include <utility>
@@ -391,6 +392,48 @@ DirectionSet::inverseHemisphereSums(const std::vector<openvdb::math::Vec3s>& nor
         });
     return inv;
 }
+
+size_t
+DirectionSet::cellOf(const openvdb::math::Vec3d& d) const
+{
+    if (empty() || !std::isfinite(d.x()) || !std::isfinite(d.y()) || !std::isfinite(d.z())
+            || d.lengthSqr() == 0.0) {
+        OPENVDB_THROW(openvdb::ValueError, "DirectionSet::cellOf needs a non-empty set and a "
+            "finite non-zero direction");
+    }
+    // Walk the voxels the ray crosses (unit cubes centred on integer points) until the next one
+    // lies outside B_R: the face between them is the one boundary surfel the ray crosses, and
+    // it belongs to the last voxel inside, whose primitive direction owns it.
+    const int64_t r2 = int64_t(mRadius) * mRadius;
+    openvdb::math::Coord p(0, 0, 0);
+    int step[3];
+    double tMax[3], tDelta[3];
+    for (int m = 0; m < 3; ++m) {
+        step[m] = d[m] > 0.0 ? 1 : (d[m] < 0.0 ? -1 : 0);
+        tDelta[m] = step[m] != 0 ? 1.0 / std::abs(d[m]) : std::numeric_limits<double>::infinity();
+        tMax[m] = 0.5 * tDelta[m];
+    }
+    for (;;) {
+        const int m = tMax[0] <= tMax[1] ? (tMax[0] <= tMax[2] ? 0 : 2)
+                                         : (tMax[1] <= tMax[2] ? 1 : 2);
+        openvdb::math::Coord next = p;
+        next[m] += step[m];
+        if (norm2(next) > r2) break;
+        p = next;
+        tMax[m] += tDelta[m];
+    }
+    const int g = gcd3(p.x(), p.y(), p.z());
+    openvdb::math::Coord s(p.x() / g, p.y() / g, p.z() / g);
+    const bool negative = !isCanonical(s);
+    if (negative) s = -s;
+    const auto it = std::lower_bound(mDirections.begin(), mDirections.end(), s);
+    if (it == mDirections.end() || *it != s) {
+        // Every voxel with a boundary surfel is exposed, so its direction is in the set.
+        OPENVDB_THROW(openvdb::ValueError, "DirectionSet::cellOf: no pair for " << s);
+    }
+    return 2 * size_t(it - mDirections.begin()) + (negative ? 1 : 0);
+}
+
 
 DirectionSet
 DirectionSet::withFactors(std::vector<double> factors) const

@@ -122,6 +122,13 @@ public:
     /// @throw openvdb::ValueError if @a n is zero (or not finite) or the set is empty.
     std::vector<double> normalisedWeights(const openvdb::math::Vec3d& n) const;
 
+    /// @brief The cell a direction falls in: the pair whose surfels (see the file comment) the
+    ///        ray from the origin along @a d crosses, as 2k for +direction(k) and 2k + 1 for
+    ///        −direction(k). The cells tile the sphere, so a function of direction averaged over
+    ///        each cell (Sky::cellMeans) is integrated exactly once. O(radius()) per call.
+    /// @throw openvdb::ValueError if @a d is zero or not finite, or the set is empty
+    size_t cellOf(const openvdb::math::Vec3d& d) const;
+
     /// @brief This set with other pair factors (e.g. HarmonicQuadrature's).
     /// @throw openvdb::ValueError unless there is one per pair, each > 0, adding up to 2 (1e-9)
     DirectionSet withFactors(std::vector<double> factors) const;
