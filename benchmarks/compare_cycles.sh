@@ -17,6 +17,10 @@
 #       names a --brdf, Cycles renders Kd + Ks multiscatter GGX, cycles/cornell_cycles.py)
 #   VDBRAD_RENDER="--glossy-rays 64" ...          (more render options; VDBRAD_SOLVE="--brdf ggx
 #       --control-points 642" for finer lobes)
+#   WORLD="--sky 1" LAMPS=off ...                 (light from outside, issue 45: vdbrad's solve
+#       options --sky, --sky-model clear, --environment, --sun and theirs, the same world in
+#       Cycles (cycles/cornell_cycles.py); LAMPS=off: the MTL's Ke read as 0, a copy of the mesh
+#       in OUT; output in /tmp/vdbrad_vs_cycles_NAME_world unless OUT is given)
 set -euo pipefail
 # MESH: relative to the caller's directory, else to the repository's.
 mesh=${MESH:-}
@@ -35,15 +39,24 @@ if [ -f "$mtl" ] && awk 'tolower($1) == "ks" { for (i = 2; i <= 4 && i <= NF; ++
    && ! grep -q -- --brdf <<< "$solve_opts"; then
   solve_opts="--brdf ggx${solve_opts:+ $solve_opts}"
 fi
-cam="0.278,0.273,-0.8,0.278,0.273,0,0,1,0,39.3"
+cam=${CAMERA:-0.278,0.273,-0.8,0.278,0.273,0,0,1,0,39.3}
 size=${SIZE:-320x240}
 default_out=/tmp/vdbrad_vs_cycles
 [ "$name" = cornell_box ] || default_out=${default_out}_$name   # not the box's references
+[ -z "${WORLD-}" ] || default_out=${default_out}_world
 out=${OUT:-$default_out}
 mkdir -p "$out"
+if [ "${LAMPS-}" = off ]; then
+  # The mesh and its MTL copied with every Ke 0: lit from outside alone.
+  cp "$mesh" "$out/$name.obj"
+  sed -E 's/^([[:space:]]*)Ke .*/\1Ke 0 0 0/' "$mtl" > "$out/$(basename "$mtl")"
+  mesh=$out/$name.obj
+fi
+solve_opts="$solve_opts${WORLD:+ $WORLD}"
 blender_run() {   # SAMPLES SEED OUT.exr
-  blender -b -noaudio --factory-startup --python benchmarks/cycles/cornell_cycles.py -- \
-    "$mesh" "$3" "$1" "$2" "$size" "$cam" > "$out/blender.log" 2>&1
+  WORLD=${WORLD-} blender -b -noaudio --factory-startup \
+    --python benchmarks/cycles/cornell_cycles.py -- "$mesh" "$3" "$1" "$2" "$size" "$cam" \
+    > "$out/blender.log" 2>&1
 }
 seconds() { local t0=$(date +%s.%N); "$@"; echo "$(date +%s.%N) - $t0" | bc; }
 

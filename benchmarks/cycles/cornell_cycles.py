@@ -147,11 +147,112 @@ for mat in bpy.data.materials:
     else:
         links.new(reflection(nodes, links, m), output.inputs["Surface"])
 
-world = bpy.data.worlds.new("black")
+# The world: black, or the light from outside that vdbrad's solve options in $WORLD give (issue
+# 45), each pi times brighter in Cycles as the lamps are (a pixel shows radiance, vdbrad's
+# radiosity): --sky L or R,G,B (a Background of that colour); --sky-model clear with --sun and
+# --turbidity (the Preetham Sky Texture); --environment FILE [--environment-rotation DEG] (an
+# Environment Texture, linear); --sun ZENITH,AZIMUTH --irradiance E --sun-diameter D (a Sun lamp of
+# strength pi E and that angle). --up gives the up axis of the OBJ's coordinates, which the import
+# keeps: Blender's sky and map textures take z as up and turn azimuth the other way, so a y-up
+# scene's view vector reaches them as (x, z, y).
+def world_options(text):
+    words, options = text.split(), {}
+    for i, w in enumerate(words):
+        if w.startswith("--"):
+            nxt = words[i + 1] if i + 1 < len(words) else ""
+            options[w[2:]] = "" if nxt.startswith("--") else nxt
+    return options
+
+
+def numbers(text):
+    v = [float(x) for x in text.split(",")]
+    return v if len(v) == 3 else v * 3
+
+
+light = world_options(os.environ.get("WORLD", ""))
+up = {"x": 0, "y": 1, "z": 2}[light.get("up", "y")]
+
+
+def to_world(zenith, azimuth):
+    """vdbrad's direction towards the sun (vdbrad/scene/Sun.cc) in the OBJ's coordinates."""
+    first, second = sorted(((up + 1) % 3, (up + 2) % 3))
+    z, a = math.radians(zenith), math.radians(azimuth)
+    d = [0.0, 0.0, 0.0]
+    d[up], d[first], d[second] = math.cos(z), math.sin(z) * math.cos(a), math.sin(z) * math.sin(a)
+    return mathutils.Vector(d)
+
+
+def sky_space(v):
+    """A world vector as Blender's sky and environment textures read it (z up)."""
+    if up == 2:
+        return v
+    first, second = sorted(((up + 1) % 3, (up + 2) % 3))
+    return mathutils.Vector((v[first], v[second], v[up]))
+
+
+world = bpy.data.worlds.new("world")
 world.use_nodes = True
-world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+wnodes, wlinks = world.node_tree.nodes, world.node_tree.links
+background = wnodes["Background"]
+background.inputs["Strength"].default_value = 0.0
+if "sky" in light:
+    r, g, b = numbers(light["sky"])
+    background.inputs["Color"].default_value = (r, g, b, 1.0)
+    background.inputs["Strength"].default_value = math.pi
+elif light.get("sky-model") == "clear" or "environment" in light:
+    # The view vector mapped to the textures' z-up space: a Mapping node (scale, then rotate)
+    # swapping the up axis into z: y up: scale z by -1, then +90 degrees about x: (x, y, z) ->
+    # (x, z, y). A turn of the map about up adds to the rotation about the textures' z.
+    coords = wnodes.new("ShaderNodeTexCoord")
+    mapping = wnodes.new("ShaderNodeMapping")
+    mapping.vector_type = "VECTOR"
+    if up == 1:
+        mapping.inputs["Scale"].default_value = (1.0, 1.0, -1.0)
+        mapping.inputs["Rotation"].default_value = (math.pi / 2, 0.0, 0.0)
+    elif up == 0:
+        raise SystemExit("--up x: not mapped")
+    wlinks.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    if light.get("sky-model") == "clear":
+        tex = wnodes.new("ShaderNodeTexSky")
+        tex.sky_type = "PREETHAM"
+        tex.turbidity = float(light.get("turbidity", "3"))
+        zen, azi = (float(x) for x in light["sun"].split(","))
+        tex.sun_direction = sky_space(to_world(zen, azi))
+    else:
+        tex = wnodes.new("ShaderNodeTexEnvironment")
+        tex.image = bpy.data.images.load(os.path.abspath(light["environment"]))
+        tex.image.colorspace_settings.name = "Linear"
+        tex.interpolation = "Linear"
+        turn = math.radians(float(light.get("environment-rotation", "0")))
+        # vdbrad turns the map by +turn about up (from the first horizontal axis towards the
+        # second); in the textures' space that is a turn about z of the opposite sense.
+        rot = mapping.inputs["Rotation"].default_value
+        if up == 2:
+            mapping.inputs["Rotation"].default_value = (rot[0], rot[1], -turn)
+        else:
+            # Applied after the swap: a rotation about the textures' z.
+            mapping2 = wnodes.new("ShaderNodeMapping")
+            mapping2.vector_type = "VECTOR"
+            mapping2.inputs["Rotation"].default_value = (0.0, 0.0, -turn)
+            wlinks.new(mapping.outputs["Vector"], mapping2.inputs["Vector"])
+            mapping = mapping2
+    wlinks.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    wlinks.new(tex.outputs["Color"], background.inputs["Color"])
+    background.inputs["Strength"].default_value = math.pi
 scene = bpy.context.scene
 scene.world = world
+if "sun" in light and float(max(numbers(light.get("irradiance", "1")))) > 0.0:
+    zen, azi = (float(x) for x in light["sun"].split(","))
+    E = numbers(light.get("irradiance", "1"))
+    k = max(E)
+    lamp = bpy.data.lights.new("sun", type="SUN")
+    lamp.energy = math.pi * k
+    lamp.color = (E[0] / k, E[1] / k, E[2] / k)
+    lamp.angle = math.radians(float(light.get("sun-diameter", "0.53")))
+    sun = bpy.data.objects.new("sun", lamp)
+    # A Sun lamp shines along its local -Z: towards -d.
+    sun.rotation_euler = to_world(zen, azi).to_track_quat("Z", "Y").to_euler()
+    scene.collection.objects.link(sun)
 
 camera = bpy.data.cameras.new("camera")
 camera.sensor_fit = "VERTICAL"
