@@ -82,7 +82,7 @@ for run in ${VDBRAD_RUNS-64:1000 128:300 128:1000 128:3000 256:1000 256:3000 512
       | '$V' render - '$img' --res $size --camera $cam --exr-type float --aa 4 --quiet \
         ${VDBRAD_MESH-"--mesh '$mesh'"} ${VDBRAD_RENDER-}")
     images+=("$img"); labels+=("vdbrad res $res, $dirs directions, direct $direct $opts: $t s")
-    rows+=("vdbrad,$res,$dirs,$direct,$opts,,$t")
+    rows+=("vdbrad,$res,$dirs,$direct,${opts//,/;},,$t")   # options' commas would split columns
   done
 done
 for spp in ${CYCLES_SPP-16 64 256 1024}; do
@@ -92,7 +92,13 @@ for spp in ${CYCLES_SPP-16 64 256 1024}; do
   rows+=("cycles,,,,,$spp,$t")
 done
 printf '%s\n' "${labels[@]}"
-blender -b -noaudio --factory-startup --python benchmarks/cycles/image_error.py -- \
+# A daylit scene has no lamp in view: its brightest pixels count; a uniform sky seen past the
+# scene (pi L in both images) does not.
+sky=$(sed -nE 's/.*--sky ([0-9.e+-]+(,[0-9.e+-]+,[0-9.e+-]+)?).*/\1/p' <<< "${WORLD-}")
+[ -z "$sky" ] || sky=$(python3 -c "import math, sys; v = [float(x) * math.pi for x in \
+  sys.argv[1].split(',')]; print(','.join(map(repr, v * 3 if len(v) == 1 else v)))" "$sky")
+BACKGROUND=${BACKGROUND:-$sky} LIGHT_MASK=${LIGHT_MASK:-$([ -n "${WORLD-}" ] && echo off || echo on)} \
+  blender -b -noaudio --factory-startup --python benchmarks/cycles/image_error.py -- \
   --noise "$ref2" "$ref1" "${images[@]}" 2>/dev/null | grep -E "error|noise|stripes" \
   | tee "$out/errors.txt"
 if [ -n "${CSV-}" ]; then

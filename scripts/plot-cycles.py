@@ -3,6 +3,7 @@
 
     CSV=docs/cornell-vs-cycles.csv bash benchmarks/compare_cycles.sh
     python3 scripts/plot-cycles.py docs/cornell-vs-cycles.csv
+    python3 scripts/plot-cycles.py CSV OUT.png "TITLE" "REFERENCE"   (other scenes)
 
 One curve per vdbrad direction count over the resolutions (exact and sweeps' direct light),
 other solve options as single points, Cycles over its sample counts. Needs python3-matplotlib
@@ -59,10 +60,13 @@ ax.set_xscale("log")
 ax.set_yscale("log")
 ax.axhline(1.0, color="grey", linewidth=0.5)
 ax.set_xlabel("seconds, whole process, 2 cores")
-ax.set_ylabel("image error against Cycles 2 x 4096 spp, %")
-ax.set_title("Cornell box mesh, 320 x 240 (labels: vdbrad resolution, Cycles spp)")
+reference = sys.argv[4] if len(sys.argv) > 4 else "Cycles 2 x 4096 spp"
+ax.set_ylabel("image error against %s, %%" % reference)
+ax.set_title(sys.argv[3] if len(sys.argv) > 3
+             else "Cornell box mesh, 320 x 240 (labels: vdbrad resolution, Cycles spp)")
 ax.legend(fontsize=7)
 fig.tight_layout()
-out = os.path.join(os.path.dirname(os.path.abspath(path)), "cornell-vs-cycles.png")
+out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(
+    os.path.dirname(os.path.abspath(path)), "cornell-vs-cycles.png")
 fig.savefig(out, dpi=110)
 print(out)

@@ -7,9 +7,15 @@
 # a stripe measure: the high-frequency energy of the back wall's pixels (the residual of a 5 x 5
 # box blur, RMS, relative to their mean), to set against the reference's own.
 #
+# LIGHT_MASK=off keeps the brightest pixels (a daylit scene shows no lamp: its brightest pixels
+# are the sunlit surfaces, which the error must count); BACKGROUND=r,g,b leaves out the pixels
+# where the reference shows that colour (a uniform sky seen past the scene: the same in every
+# image, it would only dilute the error).
+#
 #   blender -b -noaudio --factory-startup --python image_error.py -- REF.exr X.exr [X.exr ...]
 #   ("--noise REF2.exr" first: REF2 of another seed; the reference is then the mean of the two,
 #   and its noise the error of the mean moved by (REF - REF2) / (2 sqrt 2), the mean's own spread)
+import os
 import sys
 
 import bpy
@@ -38,6 +44,11 @@ if noise is not None:
 lum = ref.mean(axis=2)
 # The back wall between the blocks' tops and the ceiling, right of the tall block (Blender's
 # rows run bottom-up: rows 42-77 %, columns 53-70 % of the default Cornell view).
+masked = os.environ.get("LIGHT_MASK", "on") != "off"
+seen = np.ones(lum.shape, dtype=bool)
+if os.environ.get("BACKGROUND"):
+    bg = np.array([float(v) for v in os.environ["BACKGROUND"].split(",")])
+    seen = ~np.all(np.abs(ref - bg) <= 1e-4 * np.maximum(np.abs(bg), 1e-30), axis=2)
 h, w = lum.shape
 wall = (slice(int(0.42 * h), int(0.77 * h)), slice(int(0.53 * w), int(0.70 * w)))
 
@@ -56,24 +67,24 @@ def interior():
     """Pixels away from outlines: no 4-neighbour of the reference differs by more than 15 %,
     grown by 3 pixels (a voxel surface's outline is up to half a voxel off the mesh's, which
     the full error counts; this one measures the shading)."""
-    edge = (lum >= 0.5 * lum.max()) | (lum <= 0)
+    edge = (lum >= 0.5 * lum.max()) * masked | (lum <= 0)
     for dy, dx in ((0, 1), (1, 0)):
         other = np.roll(lum, (dy, dx), (0, 1))
         edge |= np.abs(other - lum) > 0.15 * np.maximum(np.maximum(lum, other), 1e-30)
     for _ in range(3):
         edge = edge | np.roll(edge, 1, 0) | np.roll(edge, -1, 0) | np.roll(edge, 1, 1) \
             | np.roll(edge, -1, 1)
-    return ~edge
+    return ~edge & seen
 
 
 def error(x):
-    bright = (lum >= 0.5 * lum.max()) | (x.mean(axis=2) >= 0.5 * lum.max())
+    bright = ((lum >= 0.5 * lum.max()) | (x.mean(axis=2) >= 0.5 * lum.max())) * masked
     grown = bright.copy()
     grown[1:, :] |= bright[:-1, :]
     grown[:-1, :] |= bright[1:, :]
     grown[:, 1:] |= bright[:, :-1]
     grown[:, :-1] |= bright[:, 1:]
-    keep = ~grown
+    keep = ~grown & seen
     return np.abs(x - ref)[keep].mean() / ref[keep].mean()
 
 
