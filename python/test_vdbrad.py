@@ -273,6 +273,10 @@ class Module(unittest.TestCase):
         # A sky lights it (from outside: the box's walls face inwards, so none of it enters).
         lit = vdbrad.solve(furnace_box(4, 0.5, 0.0), directions=20, sky=1.0)
         self.assertEqual(active_values(lit[-1]).max(), 0.0)
+        # An RGB sky makes the grey box's solve RGB; its light is recorded for render().
+        rgb = vdbrad.solve(furnace_box(4, 0.5, 0.0), directions=20, sky=(0.2, 0.3, 0.5))
+        self.assertEqual(type(rgb[-1]).__name__, "Vec3SGrid")
+        self.assertEqual(rgb[-1].metadata["vdbrad:light"], "sky=0.2,0.3,0.5\n")
 
 
 class Errors(unittest.TestCase):
