@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A scene with no lamp, lit by daylight: the sun (its first collision exact, soft shadows) and
 # Preetham's clear sky for its position (blue overhead, paler and brighter round the sun; in
-# kcd/m^2 as Blender's Preetham sky, so a clear day's sun is ~100 klx), over pipes:
+# kcd/m^2 as Preetham's paper gives it, so a clear day's sun is ~100 klx), over pipes:
 #   vdbrad voxelize blocks.obj - | vdbrad solve - - --sky-model clear --sun 50,30 \
 #     --irradiance 100 | vdbrad render - blocks.exr --png blocks.png
 # Writes blocks.obj (three blocks on a ground, metres, y up), blocks_lit.vdb, blocks.exr and

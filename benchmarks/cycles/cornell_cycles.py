@@ -200,6 +200,7 @@ if "sky" in light:
     background.inputs["Color"].default_value = (r, g, b, 1.0)
     background.inputs["Strength"].default_value = math.pi
 elif light.get("sky-model") == "clear" or "environment" in light:
+    preetham_scale = 1.0
     # The view vector mapped to the textures' z-up space: a Mapping node (scale, then rotate)
     # swapping the up axis into z: y up: scale z by -1, then +90 degrees about x: (x, y, z) ->
     # (x, z, y). A turn of the map about up adds to the rotation about the textures' z.
@@ -218,6 +219,9 @@ elif light.get("sky-model") == "clear" or "environment" in light:
         tex.turbidity = float(light.get("turbidity", "3"))
         zen, azi = (float(x) for x in light["sun"].split(","))
         tex.sun_direction = sky_space(to_world(zen, azi))
+        # Cycles scales Preetham's zenith luminance by 0.06 (scene/shader_nodes.cpp,
+        # sky_texture_precompute_preetham); vdbrad keeps the paper's kcd/m^2.
+        preetham_scale = 1.0 / 0.06
     else:
         tex = wnodes.new("ShaderNodeTexEnvironment")
         tex.image = bpy.data.images.load(os.path.abspath(light["environment"]))
@@ -238,7 +242,8 @@ elif light.get("sky-model") == "clear" or "environment" in light:
             mapping = mapping2
     wlinks.new(mapping.outputs["Vector"], tex.inputs["Vector"])
     wlinks.new(tex.outputs["Color"], background.inputs["Color"])
-    background.inputs["Strength"].default_value = math.pi
+    background.inputs["Strength"].default_value = math.pi * (
+        preetham_scale if light.get("sky-model") == "clear" else 1.0)
 scene = bpy.context.scene
 scene.world = world
 if "sun" in light and float(max(numbers(light.get("irradiance", "1")))) > 0.0:

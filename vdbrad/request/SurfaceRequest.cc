@@ -113,8 +113,9 @@ lightOptions()
             "outside receives from each direction in which it sees no voxel (diffuse scenes)"},
         OptionSpec{"sky-model", OptionType::String, "uniform", "clear",
             "uniform: --sky's radiance; clear: Preetham's clear sky for the --sun's position "
-            "(as Blender's Sky Texture 'Preetham': luminance in kcd/m^2 as radiance, so a "
-            "clear day's sun is about --irradiance 100) over a uniform ground"}
+            "(the paper's luminance in kcd/m^2 as radiance, so a clear day's sun is about "
+            "--irradiance 100; Blender's 'Preetham' Sky Texture is 0.06 of it) over a uniform "
+            "ground"}
             .oneOf({"uniform", "clear"}),
         OptionSpec{"turbidity", OptionType::Float, "3", "2",
             "--sky-model clear: the haze (2 very clear, 3 clear, 6 hazy)"}.within(1, 10),

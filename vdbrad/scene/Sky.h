@@ -56,8 +56,8 @@ public:
     /// @throw openvdb::ValueError if a channel is negative or not finite
     static Sky uniform(const openvdb::Vec3d& radiance);
 
-    /// @brief Preetham's clear sky (the model Blender's Sky Texture calls "Preetham": the same
-    /// formulas and units, luminance in kcd/m^2 as radiance, linear Rec. 709 RGB) for the sun at
+    /// @brief Preetham's clear sky (the paper's luminance in kcd/m^2 as radiance, linear Rec. 709
+    /// RGB; Blender's "Preetham" Sky Texture is the same times 0.06, its own scale) for the sun at
     /// @a zenith and @a azimuth degrees about @a up, with atmospheric @a turbidity. Below the
     /// horizon, a uniform ground of radiance groundAlbedo x E / pi, E the horizontal irradiance of
     /// the sky plus @a sunIrradiance x cos(zenith) (the sun's own light, if a sun is given).
