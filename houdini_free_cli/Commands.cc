@@ -122,12 +122,14 @@ commands()
                 "vdbrad solve scene.vdb out.vdb --lines standard --tolerance 1e-4"},
             runSolve},
         {"solve-cloud", "IN OUT", 2, 2,
-            "solve the light in a fog volume (`density` grid) lit by the sun and by the surfaces "
-            "of a scene in the same file (a level set or `normal` grid, its `albedo` and "
-            "`emission`: a foggy room lit by its lamps); writes the input's grids plus the mean "
-            "radiance `mean_intensity` (and the surfaces' `radiosity`)",
+            "solve the light in a fog volume (`density` grid) lit by the sun, the sky and by the "
+            "surfaces of a scene in the same file (a level set or `normal` grid, its `albedo` "
+            "and `emission`: a foggy room lit by its lamps); writes the input's grids plus the "
+            "mean radiance `mean_intensity` (and the surfaces' `radiosity`)",
             withToolOptions(cloudSolveOptions(), {kVerbose, kOverwrite, kQuiet}),
             {"vdbrad make cumulus - | vdbrad solve-cloud - lit.vdb --sun 40,0",
+                "vdbrad make cumulus - | vdbrad solve-cloud - day.vdb --sky-model clear "
+                "--sun 40,30 --irradiance 100",
                 "vdbrad make cornell --tau 1 - | vdbrad solve-cloud - foggy.vdb --irradiance 0",
                 "vdbrad solve-cloud slab.vdb out.vdb --periodic --sun 60,0 --albedo 0"},
             runSolveCloud},

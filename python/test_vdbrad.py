@@ -391,6 +391,21 @@ class SolveCloud(unittest.TestCase):
                                delta=1e-5)
         self.assertGreater(budget["vdbrad:albedo"], 0.1)
 
+    def test_cloud_furnace_under_a_sky(self):
+        # A conservative cube of fog under a uniform sky and no sun: J = L in every voxel.
+        density = vdb.FloatGrid()
+        density.name = "density"
+        density.gridClass = vdb.GridClass.FOG_VOLUME
+        density.transform = vdb.createLinearTransform(voxelSize=0.125)
+        density.fill((0, 0, 0), (7, 7, 7), 4.0)
+        out = vdbrad.solve_cloud([density], sky=0.5, directions=100, tolerance=1e-7)
+        j = active_values(out[1])
+        self.assertEqual(len(j), 512)
+        self.assertLess(np.max(np.abs(j - 0.5)), 5e-5)
+        self.assertEqual(out[1].metadata["vdbrad:light"], "sky=0.5\n")
+        with self.assertRaisesRegex(ValueError, "irradiance with a sky needs sun"):
+            vdbrad.solve_cloud([density], sky=0.5, irradiance=2.0)
+
     def test_fire_lights_the_smoke(self):
         # Blender's and Houdini's fire: `flame` is the medium's emission. An absorbing fog
         # (albedo 0) lit by nothing else: deep in a uniform flame the radiance is the

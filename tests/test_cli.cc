@@ -1155,8 +1155,8 @@ TEST_F(CliTest, UnlitScenesAreRefused)
         {"solve lamp.vdb out.vdb", "lamp.vdb: nothing lights the scene: no voxel emits (an "
             "`emission` grid, MTL Ke) and there is no --sun, --sky or --environment"},
         {"solve lamp.vdb out.vdb --sun 30,0 --irradiance 0", "nothing lights the scene"},
-        {"solve-cloud slab.vdb out.vdb --irradiance 0", "slab.vdb: nothing lights the cloud: "
-            "--irradiance is 0, the medium does not emit"},
+        {"solve-cloud slab.vdb out.vdb --irradiance 0", "slab.vdb: nothing lights the cloud: no "
+            "sun (--irradiance is 0), no --sky or --environment, the medium does not emit"},
     };
     for (const auto& [command, message] : cases) {
         const Result r = sh("vdbrad " + command + " --quiet");
@@ -1172,22 +1172,31 @@ TEST_F(CliTest, UnlitScenesAreRefused)
     }
 }
 
-// Skies (issue 45): --sky grey or RGB, --sky-model clear, --environment FILE.exr; what
-// contradicts itself refused in one line; the render shows the sky the file was solved under.
-TEST_F(CliTest, SkiesAndEnvironmentMaps)
+// Skies (issue 45): the maps the tests light with.
+class SkyCliTest : public CliTest
 {
-    ASSERT_EQ(sh("vdbrad make plates lamp.vdb --res 16 --emission 0 --quiet").status, 0);
-    // A 64 x 32 map: 0.4 with one pixel 10^4 times brighter (a sun), and one without.
-    Image map;
-    map.width = 64;
-    map.height = 32;
-    map.pixels.assign(64 * 32, openvdb::Vec3f(0.4f));
+protected:
+    // 64 x 32 maps: plain.exr 0.4 everywhere, sunny.exr with one pixel 10^4 times brighter (a
+    // sun); text.exr no image at all.
+    void writeMaps()
     {
+        Image map;
+        map.width = 64;
+        map.height = 32;
+        map.pixels.assign(64 * 32, openvdb::Vec3f(0.4f));
         std::ofstream(path("plain.exr"), std::ios::binary) << encodeExr(map, ExrPixel::Float);
         map.at(20, 8) = openvdb::Vec3f(4000.f);
         std::ofstream(path("sunny.exr"), std::ios::binary) << encodeExr(map, ExrPixel::Float);
+        writeText("text.exr", "not an image\n");
     }
-    writeText("text.exr", "not an image\n");
+};
+
+// --sky grey or RGB, --sky-model clear, --environment FILE.exr; what contradicts itself refused
+// in one line; the render shows the sky the file was solved under.
+TEST_F(SkyCliTest, SkiesAndEnvironmentMaps)
+{
+    ASSERT_EQ(sh("vdbrad make plates lamp.vdb --res 16 --emission 0 --quiet").status, 0);
+    writeMaps();
     const std::vector<std::pair<std::string, std::string>> refused = {
         {"--sky -1", "--sky must be >= 0"},
         {"--sky 1,2", "--sky needs one number (grey) or three (r,g,b), got '1,2'"},
@@ -1228,6 +1237,57 @@ TEST_F(CliTest, SkiesAndEnvironmentMaps)
     const Result clear = sh("vdbrad solve lamp.vdb clear.vdb --quiet --directions 40 "
                             "--sky-model clear --sun 40,30 --irradiance 100 --turbidity 2.5");
     ASSERT_EQ(clear.status, 0) << clear.err;
+}
+
+// Clouds under a sky: the sun only when given (or the map's), the furnace holds through the
+// command line, an RGB sky or sun gives an RGB grid, the light is recorded; contradictions
+// refused in one line.
+TEST_F(SkyCliTest, CloudsUnderASky)
+{
+    ASSERT_EQ(sh("vdbrad make cumulus c.vdb --res 20 --albedo 1 --quiet").status, 0);
+    writeMaps();
+    const std::vector<std::pair<std::string, std::string>> refused = {
+        {"--sky 1 --irradiance 2", "--irradiance with a sky needs --sun"},
+        {"--irradiance 1,2", "--irradiance needs one number (grey) or three (r,g,b), got '1,2'"},
+        {"--environment sunny.exr --sun 30,0", "--environment holds a sun"},
+        {"--environment sunny.exr --irradiance 3", "--irradiance with a sky needs --sun"},
+        {"--sky-model clear", "--sky-model clear needs --sun (its position)"},
+        {"--sky 1 --environment plain.exr", "one sky at a time"},
+    };
+    for (const auto& [options, message] : refused) {
+        const Result r = sh("vdbrad solve-cloud c.vdb out.vdb --quiet " + options);
+        EXPECT_EQ(r.status, 2) << options;
+        ASSERT_EQ(r.errLines().size(), 1u) << options << ": " << r.err;
+        EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+        EXPECT_FALSE(exists(path("out.vdb"))) << options;
+    }
+    // Albedo 1 under a uniform sky: J = L in every voxel.
+    const Result furnace = sh("vdbrad solve-cloud c.vdb grey.vdb --quiet --directions 60 "
+                              "--sky 0.5 --tolerance 1e-7");
+    ASSERT_EQ(furnace.status, 0) << furnace.err;
+    const VdbFile grey = readVdbFile(path("grey.vdb"));
+    const auto J = openvdb::gridConstPtrCast<openvdb::FloatGrid>(
+        findGrid(grey.grids, "mean_intensity"));
+    ASSERT_TRUE(J);
+    EXPECT_EQ(J->metaValue<std::string>("vdbrad:light"), "sky=0.5\n");
+    for (auto it = J->cbeginValueOn(); it; ++it) ASSERT_NEAR(*it, 0.5f, 5e-5f) << it.getCoord();
+    // Rendered, it vanishes into the sky it was solved under: every pixel pi L.
+    const Result shown = sh("vdbrad render grey.vdb grey.exr --quiet --res 32x24 --exr-type float");
+    ASSERT_EQ(shown.status, 0) << shown.err;
+    for (const openvdb::Vec3f& p : decodeExr(slurp(path("grey.exr"))).pixels) {
+        ASSERT_NEAR(p[0], kPi * 0.5, 2e-4);
+    }
+    // A coloured sun under the clear sky: RGB.
+    const Result rgb = sh("vdbrad solve-cloud c.vdb rgb.vdb --quiet --directions 60 "
+                          "--sky-model clear --sun 40,30 --irradiance 1,0.8,0.6");
+    ASSERT_EQ(rgb.status, 0) << rgb.err;
+    EXPECT_TRUE(openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(
+        findGrid(readVdbFile(path("rgb.vdb")).grids, "mean_intensity")));
+    // The map's sun is the cloud's sun.
+    const Result env = sh("vdbrad solve-cloud c.vdb env.vdb --directions 60 --verbose "
+                          "--environment sunny.exr --up y");
+    ASSERT_EQ(env.status, 0) << env.err;
+    EXPECT_NE(env.err.find("a sun split off at zenith"), std::string::npos) << env.err;
 }
 
 TEST_F(CliTest, VoxelizeRefusalsAreOneLineAndWriteNothing)

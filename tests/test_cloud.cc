@@ -1160,3 +1160,165 @@ TEST_F(CloudTest, EmittingSlabHasTheInfiniteMediumsRadianceInside)
         }
     }
 }
+
+// ---- light from the sky (issue 45) -------------------------------------------------------------
+
+namespace {
+
+// E_n(x) = integral over mu in (0, 1] of mu^(n - 2) exp(-x / mu) (Simpson; x > 0 keeps it smooth).
+double
+exponentialIntegral(int n, double x)
+{
+    const int steps = 20000;
+    double sum = 0.0;
+    for (int k = 1; k <= steps; ++k) {
+        const double mu = double(k) / steps;
+        const double w = k == steps ? 1.0 : (k % 2 ? 4.0 : 2.0);
+        sum += w * std::pow(mu, n - 2) * std::exp(-x / mu);
+    }
+    return sum / (3.0 * steps);
+}
+
+} // namespace
+
+// The cloud furnace: albedo 1 under a uniform sky L and no sun, the radiance is L everywhere,
+// so J = L in every voxel of a non-convex cumulus, scattering isotropically or forward; all the
+// light is the sky's, none absorbed, and the energy balances.
+TEST_F(CloudTest, ConservativeCloudUnderAUniformSkyIsAFurnace)
+{
+    grids::BuildParams p;
+    p.res = 32;
+    p.albedo = 1.f;
+    const Cloud cloud = buildCloud(grids::makeCumulus(p));
+    const double L = 0.7;
+    for (double g : {0.0, 0.7}) {
+        CloudTransferOptions o;
+        o.irradiance = 0.0;
+        o.sky = Sky::uniform(openvdb::Vec3d(L));
+        o.directions = 100;
+        o.tolerance = 1e-7;
+        if (g != 0.0) {
+            o.phase = PhaseFunction::henyeyGreenstein(g);
+            o.phaseOrder = 4;
+        }
+        CloudTransfer transfer(cloud, o);
+        transfer.solve();
+        ASSERT_TRUE(transfer.converged()) << g;
+        const std::vector<float> J = transfer.meanIntensity();
+        float lo = J[0], hi = J[0];
+        for (float j : J) {
+            lo = std::min(lo, j);
+            hi = std::max(hi, j);
+        }
+        std::printf("cumulus furnace under a sky, g %.1f: J in [%.7f, %.7f] (L %.1f)\n", g, lo, hi,
+            L);
+        EXPECT_NEAR(lo, L, 1e-4 * L) << g;
+        EXPECT_NEAR(hi, L, 1e-4 * L) << g;
+        const CloudBudget& b = transfer.budget();
+        EXPECT_DOUBLE_EQ(b.sky, 1.0);
+        EXPECT_EQ(b.absorptance, 0.0);
+        EXPECT_NEAR(b.balance(), 0.0, 1e-5) << g;
+    }
+}
+
+// A periodic, purely absorbing slab of optical thickness tau under a uniform sky L: at depth t
+// the mean radiance is L / 2 (E2(t) + E2(tau - t)), a layer's mean of it (E3 differences), and
+// 2 E3(tau) of the incident light (pi L from each side) leaves; the side faces pass it on. The
+// directions' discretisation shows near the grazing ones: 1.7 % at 300 directions, 0.6 % at
+// 1000 (measured), so the test holds both bounds and the fall between them.
+TEST_F(CloudTest, AbsorbingPeriodicSlabUnderASkyFollowsTheExponentialIntegrals)
+{
+    const int ny = 10;
+    const double tau = 1.0, L = 0.5, dt = tau / ny, A = 256.0;
+    const Cloud cloud = slab(16, ny, 16, tau, 0.f);
+    double worst[2] = {0.0, 0.0};
+    for (int k = 0; k < 2; ++k) {
+        CloudTransferOptions o;
+        o.periodic = true;
+        o.minPeriod = 0;
+        o.irradiance = 0.0;
+        o.sky = Sky::uniform(openvdb::Vec3d(L));
+        o.directions = k == 0 ? 300 : 1000;
+        o.tolerance = 1e-7;
+        CloudTransfer transfer(cloud, o);
+        transfer.solve();
+        ASSERT_TRUE(transfer.converged());
+        const std::vector<float> J = transfer.meanIntensity();
+        for (int y = 0; y < ny; ++y) {
+            double mean = 0.0;
+            for (int x = 0; x < 16; ++x) {
+                for (int z = 0; z < 16; ++z) {
+                    mean += J[size_t(cloud.voxels().find(Coord(x, y, z)))];
+                }
+            }
+            mean /= A;
+            const double a = y * dt, b = (y + 1) * dt;
+            const double exact = 0.5 * L / dt * (exponentialIntegral(3, a)
+                - exponentialIntegral(3, b) + exponentialIntegral(3, tau - b)
+                - exponentialIntegral(3, tau - a));
+            worst[k] = std::max(worst[k], std::abs(mean / exact - 1.0));
+        }
+        const CloudBudget& bu = transfer.budget();
+        const double out = 2.0 * exponentialIntegral(3, tau), in = 2.0 * kPi * L * A;
+        std::printf("absorbing periodic slab under a sky, %d directions: layers' J within %.3f %%; "
+            "out %.5f (2 E3 %.5f), incident %.2f (2 pi L A %.2f)\n", o.directions,
+            100.0 * worst[k], bu.albedo + bu.transmittance, out, bu.incident, in);
+        const double tolerance = k == 0 ? 0.02 : 0.01;
+        EXPECT_LT(worst[k], tolerance);
+        EXPECT_NEAR(bu.albedo + bu.transmittance, out, tolerance * out);
+        EXPECT_NEAR(bu.albedo, bu.transmittance, 3e-4 * bu.albedo);   // 1.3e-4 at 300
+        EXPECT_NEAR(bu.incident, in, tolerance * in);
+        EXPECT_NEAR(bu.balance(), 0.0, 1e-5);
+    }
+    EXPECT_LT(worst[1], 0.5 * worst[0]);
+}
+
+// A coloured sky and a coloured sun are solved channel by channel: each channel of the RGB
+// solve is the grey solve under that channel's sky and sun, to the bit.
+TEST_F(CloudTest, ColouredSkyAndSunAreSolvedChannelByChannel)
+{
+    const Cloud cloud = slab(6, 5, 7, 2.0, 0.9f);
+    const openvdb::Vec3d sky(0.2, 0.3, 0.5), colour(1.0, 0.6, 0.3);
+    CloudTransferOptions o;
+    o.directions = 50;
+    o.sunZenith = 40.0;
+    o.irradiance = 2.0;
+    o.sunColour = colour;
+    o.sky = Sky::uniform(sky);
+    o.tolerance = 1e-7;
+    const auto J = openvdb::gridPtrCast<openvdb::Vec3SGrid>(solveCloud(cloud, o));
+    ASSERT_TRUE(J);
+    for (int c = 0; c < 3; ++c) {
+        CloudTransferOptions grey = o;
+        grey.irradiance = 2.0 * colour[c];
+        grey.sunColour = openvdb::Vec3d(1.0);
+        grey.sky = Sky::uniform(openvdb::Vec3d(sky[c]));
+        const auto j = openvdb::gridPtrCast<openvdb::FloatGrid>(solveCloud(cloud, grey));
+        ASSERT_TRUE(j);
+        size_t voxels = 0;
+        for (auto it = j->cbeginValueOn(); it; ++it, ++voxels) {
+            ASSERT_EQ(J->tree().getValue(it.getCoord())[c], *it) << c << " " << it.getCoord();
+        }
+        EXPECT_EQ(voxels, 210u);
+    }
+}
+
+// A constant latitude-longitude map is the uniform sky of its value.
+TEST_F(CloudTest, ConstantMapIsTheUniformSky)
+{
+    const Cloud cloud = slab(6, 5, 7, 2.0, 0.8f);
+    CloudTransferOptions o;
+    o.directions = 50;
+    o.irradiance = 0.0;
+    o.tolerance = 1e-7;
+    o.sky = Sky::uniform(openvdb::Vec3d(0.4));
+    CloudTransfer uniform(cloud, o);
+    uniform.solve();
+    o.sky = Sky::fromMap(16, 8, std::vector<openvdb::Vec3f>(128, openvdb::Vec3f(0.4f)), 1);
+    ASSERT_FALSE(o.sky.sun());
+    CloudTransfer map(cloud, o);
+    map.solve();
+    const std::vector<float> a = uniform.meanIntensity(), b = map.meanIntensity();
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(b[i], a[i], 1e-6 * a[i]) << i;
+}

@@ -426,7 +426,8 @@ TEST_F(RenderTest, LevelSetSphereHasASmoothSilhouette)
 TEST_F(RenderTest, HomogeneousCloudIntegratesExactly)
 {
     // A cube of 15^3 voxels of side 1/15 (so 1 world unit), extinction sigma, source J, albedo 1:
-    // along an axis the pixel is J (1 - e^-tau) + b e^-tau with tau = sigma * 1 (1e-5 relative),
+    // along an axis the pixel is pi J (1 - e^-tau) + b e^-tau with tau = sigma * 1 (1e-5
+    // relative; pixels hold radiosity, pi x radiance),
     // for tau from 1e-4 (where 1 - e^-tau needs expm1) to 30. A wall behind the cloud shows
     // through with the same transmittance.
     const double vs = 1.0 / 15.0;
@@ -472,7 +473,8 @@ TEST_F(RenderTest, HomogeneousCloudIntegratesExactly)
                 EXPECT_EQ(image.warnings.size(), withSource ? 0u : 1u);
                 const double tau = double(sigma) * 1.0, T = std::exp(-tau);
                 const double behind = withWall ? 0.37 : 0.25;
-                const double expected = (withSource ? J * -std::expm1(-tau) : 0.0) + behind * T;
+                const double expected = (withSource ? kPi * J * -std::expm1(-tau) : 0.0)
+                    + behind * T;
                 // Below a transmittance of 1e-10 the ray counts as opaque, hence the 1e-9.
                 EXPECT_NEAR(image.at(16, 16)[0], expected, 1e-5 * expected + 1e-9)
                     << "sigma " << sigma << " source " << withSource << " wall " << withWall;
@@ -482,7 +484,7 @@ TEST_F(RenderTest, HomogeneousCloudIntegratesExactly)
         }
     }
     {
-        // Thin cloud, black background: the pixel is J tau (1 - tau / 2 + ...), all from the
+        // Thin cloud, black background: the pixel is pi J tau (1 - tau / 2 + ...), all from the
         // expm1 term (1e-5 relative).
         auto density = openvdb::FloatGrid::create(0.f);
         density->setName("density");
@@ -498,7 +500,7 @@ TEST_F(RenderTest, HomogeneousCloudIntegratesExactly)
         cam.target = Vec3d(c, c, c);
         o.camera = cam;
         const Image image = renderImage({density, source}, o);
-        const double expected = 2.0 * -std::expm1(-double(1e-4f));
+        const double expected = kPi * 2.0 * -std::expm1(-double(1e-4f));
         EXPECT_NEAR(image.at(16, 16)[0], expected, 1e-5 * expected);
     }
 }
@@ -776,7 +778,7 @@ TEST_F(RenderTest, FinalGatherShowsTheExactDirectLightAtEachPixelsPoint)
 // The cloud solver's ground under a cloud (`ground_irradiance`, CloudTransfer::groundGrid) is
 // drawn, seen from above, as its radiosity rho E attenuated by the cloud in front: looking
 // straight down through a uniform cloud of optical depth tau onto a ground of irradiance E, the
-// pixel is J (1 - e^-tau) + rho E e^-tau (1e-5). Seen from below, the ground is not drawn.
+// pixel is pi J (1 - e^-tau) + rho E e^-tau (1e-5). Seen from below, the ground is not drawn.
 TEST_F(RenderTest, GroundUnderACloudShowsItsRadiosity)
 {
     const double vs = 1.0 / 15.0;
@@ -810,7 +812,8 @@ TEST_F(RenderTest, GroundUnderACloudShowsItsRadiosity)
         EXPECT_TRUE(image.warnings.empty());
         const double T = std::exp(-double(sigma));
         const double behind = fromAbove ? rho * E : 0.25;
-        EXPECT_NEAR(image.at(16, 16)[0], J * -std::expm1(-double(sigma)) + behind * T, 1e-5)
+        EXPECT_NEAR(image.at(16, 16)[0], kPi * J * -std::expm1(-double(sigma)) + behind * T,
+            1e-5)
             << fromAbove;
     }
 }

@@ -168,6 +168,7 @@ struct CloudTransfer::Impl::DirectionPass
     const std::vector<float>& kappaP;
     std::vector<float>& G;
     std::array<double, 2>& escaped;
+    double& skyEntered;
     const int up;
     // The line swept (the direction's own, or its projection across flat axes), its step in
     // voxels and its tube's etendue (cross-section 1 / step voxel faces times the solid angle
@@ -213,7 +214,7 @@ struct CloudTransfer::Impl::DirectionPass
         , E(s.E[SweepSchedule::patternOf(g)].empty() ? nullptr
                                                       : s.E[SweepSchedule::patternOf(g)].data())
         , kappaP(i.kappaOrdered[SweepSchedule::patternOf(g)]), G(s.G[size_t(g)])
-        , escaped(s.escaped[size_t(g)]), up(t.mOptions.up)
+        , escaped(s.escaped[size_t(g)]), skyEntered(s.skyEntered[size_t(g)]), up(t.mOptions.up)
         , line(sweptLine(i.schedule->directions().direction(dir), i.flat))
         , sigma(line.sigma), unit(line.unit), step(line.step)
         , omega(float(kPi * i.schedule->directions().factor(dir)))
@@ -336,19 +337,42 @@ struct CloudTransfer::Impl::DirectionPass
         ray.pending = false;
     }
 
+    // Whether a line whose first voxel is x, travelling along sense @a forward, entered the box
+    // from outside: not up out of the ground's layer (down into it, through the gaps of a
+    // sparse medium, it did), nor out of a closed cavity a surface voxel faces (FogSurfaces.h).
+    bool fromOutside(uint32_t x, bool forward) const
+    {
+        if (layer && layer->contains(pattern.sweep->coord(x))) {
+            return (forward ? unit[up] : -unit[up]) < 0.0;
+        }
+        if (surfaceP) {
+            const uint32_t v = (*surfaceP)[x];
+            if (v != FogSurfaces::kNone && impl.enclosed[v]) return false;
+        }
+        return true;
+    }
+
     // Voxel x of the pattern's order met by @a ray in sense @a forward.
     template<bool Lin>
     void visit(uint32_t x, Ray& ray, bool forward, bool sources)
     {
         if (!ray.started) {
             ray.started = true;
+            int at = -1;
             if (periodic) {
-                const int at = periodic->entering(part, sigma, pattern.sweep->coord(x),
+                at = periodic->entering(part, sigma, pattern.sweep->coord(x),
                     forward ? unit : -unit, forward);
                 if (at >= 0) {
                     const uint32_t c = periodic->enterCount(d, size_t(at));
                     ray.radiance = float(entry[size_t(at)] / c / etendue);
                 }
+            }
+            // The sky, once per sweep (the pass with the sources), where the line comes in
+            // from outside (an isolated line's tube has no cross-section).
+            if (at < 0 && sources && !impl.skyIn.empty() && !line.isolated
+                && fromOutside(x, forward)) {
+                ray.radiance = impl.skyIn[2 * d + (forward ? 0 : 1)];
+                skyEntered += double(ray.radiance) * etendue;
             }
         }
         // An isolated line holds one voxel: nothing comes in from the one before.
@@ -462,9 +486,16 @@ CloudTransfer::Impl::sweepDirection(const CloudTransfer& t, int g, size_t d, siz
     Batch& batch, Sweep& sw) const
 {
     DirectionPass p(*this, t, g, d, column, batch, sw);
+    const PeriodicBoundary* periodic = boundary.get();
+    if (periodic && !skyIn.empty() && !p.line.isolated) {
+        // Horizontal directions never enter through the top or bottom: their half cells drift
+        // in from outside the box through the side faces.
+        const double rise = periodic->rise(schedule->directions(), d);
+        p.skyEntered += periodic->skyDrift(d, rise, {skyIn[2 * d], skyIn[2 * d + 1]}, p.etendue,
+            p.entry);
+    }
     if (t.mOptions.source == VoxelSource::Linear) p.pass<true>(true);
     else p.pass<false>(true);
-    const PeriodicBoundary* periodic = boundary.get();
     if (periodic && !p.line.isolated) {
         periodic->followWraps(d, periodic->rise(schedule->directions(), d), p.unit[t.mOptions.up],
             p.entry, p.exits, [&] { p.pass<false>(false); }, &sw.leftNow[periodic->slice(d)],
@@ -584,6 +615,7 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
             ranks.share(sw.onSurface[size_t(g)], surfaceCount, owner);
             ranks.share(sw.escaped[size_t(g)].data(), sizeof(double) * 2, owner);
             ranks.share(&sw.backs[size_t(g)], sizeof(double), owner);
+            ranks.share(&sw.skyEntered[size_t(g)], sizeof(double), owner);
         });
     // The light wrapping a periodic box: one slice per direction, written by its owner alone.
     ranks.combine(sw.leftNow);
@@ -618,9 +650,13 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
             up0 += e[1];
         }
     }
-    const double total = impl.incident + impl.emitted + impl.mediumEmitted;
+    // The sky's power, the groups added in a fixed order.
+    impl.skyIncident = 0.0;
+    for (double e : sw.skyEntered) impl.skyIncident += e;
+    const double total = impl.incident + impl.skyIncident + impl.emitted + impl.mediumEmitted;
     const double in = total > 0.0 ? total : 1.0;
     mBudget.incident = total * impl.outputScale;
+    mBudget.sky = impl.skyIncident / in;
     mBudget.emitted = (impl.emitted + impl.mediumEmitted) / in;
     mBudget.mediumEmitted = impl.mediumEmitted / in;
     mBudget.surfaceAbsorptance = surfaceAbsorbed / in;

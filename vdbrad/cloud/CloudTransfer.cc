@@ -32,6 +32,12 @@ checkOptions(const CloudTransferOptions& options)
         OPENVDB_THROW(openvdb::ValueError, "phase order must be >= 0 (or -1: auto), got "
             << options.phaseOrder);
     }
+    for (int c = 0; c < 3; ++c) {
+        if (!(options.sunColour[c] >= 0.0 && std::isfinite(options.sunColour[c]))) {
+            OPENVDB_THROW(openvdb::ValueError, "sun colour must be finite and >= 0, got "
+                << options.sunColour);
+        }
+    }
     if (options.groundAlbedo && !(*options.groundAlbedo >= 0.0 && *options.groundAlbedo <= 1.0)) {
         OPENVDB_THROW(openvdb::ValueError, "ground albedo must be in [0, 1], got "
             << *options.groundAlbedo);
@@ -72,6 +78,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     const Vec3d toSun = sunDirection(options.sunZenith, options.sunAzimuth, options.up,
         cloud.transform());
     impl.traceBeam(cloud, options, toSun, interrupt);
+    impl.setSky(options, directions, cloud.transform());
     if (!given.emission().isZero()) impl.setEmission(given, options, cloud.voxelSize());
     impl.diffuseJ.assign(impl.n, 0.f);
     impl.moments.assign(impl.n * size_t(impl.M), 0.f);
@@ -86,14 +93,25 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
 
-// The medium solved, where it is not the cloud as given: copies side by side (@a copies), a
-// ground's layer under them, surface voxels merged in; copyOf maps each voxel to the given
-// cloud's.
+// The medium solved, where it is not the cloud as given: a periodic box filled (filledBox()),
+// copies side by side (@a copies), a ground's layer under them, surface voxels merged in;
+// copyOf maps each voxel to the given cloud's (kNoCloudVoxel: none).
 void
 CloudTransfer::Impl::assemble(const Cloud& given, const CloudTransferOptions& options,
     const Coord& copies)
 {
-    if (copies != Coord(1)) solved.reset(new Cloud(tileCloud(given, copies, &copyOf)));
+    if (options.periodic && given.size() < given.voxels().bbox().volume()) {
+        solved.reset(new Cloud(filledBox(given, &copyOf)));
+    }
+    if (copies != Coord(1)) {
+        std::vector<uint32_t> from;
+        Cloud tiled = tileCloud(solved ? *solved : given, copies, &from);
+        if (solved) {
+            for (uint32_t& f : from) f = copyOf[f];
+        }
+        copyOf = std::move(from);
+        solved.reset(new Cloud(std::move(tiled)));
+    }
     if (options.groundAlbedo) {
         groundAlbedo = *options.groundAlbedo;
         const Cloud& above = solved ? *solved : given;
@@ -114,7 +132,8 @@ CloudTransfer::Impl::assemble(const Cloud& given, const CloudTransferOptions& op
         surfaces.reset(new FogSurfaces(*options.surfaces, options.channel));
         std::vector<uint32_t> from;
         Cloud merged = surfaces->merged(given, from, surfaceOf);
-        static_assert(FogSurfaces::kNone == GroundLayer::kGround, "one mark for no cloud voxel");
+        static_assert(FogSurfaces::kNone == GroundLayer::kGround && kNoCloudVoxel
+            == GroundLayer::kGround, "one mark for no cloud voxel");
         copyOf = std::move(from);
         solved.reset(new Cloud(std::move(merged)));
     }
@@ -162,10 +181,12 @@ CloudTransfer::Impl::traceBeam(const Cloud& cloud, const CloudTransferOptions& o
     // The transfer runs at the irradiance divided by a power of two that brings it to [0.5, 1),
     // and intensities are multiplied back on output (both exact): flush-to-zero (Denormals.h)
     // then cuts at the same relative level for any F0, and F0 = 2^k F gives 2^k times the bits.
+    // Without a sun, the sky's horizontal irradiance sets the scale.
+    const double F0 = options.irradiance * options.sunColour[options.channel];
+    const double reference = F0 > 0.0 || options.sky.empty() ? F0
+        : options.sky.horizontalIrradiance()[options.channel];
     int exponent = 0;
-    if (options.irradiance > 0.0 && std::isfinite(options.irradiance)) {
-        std::frexp(options.irradiance, &exponent);
-    }
+    if (reference > 0.0 && std::isfinite(reference)) std::frexp(reference, &exponent);
     outputScale = std::ldexp(1.0, exponent);
     const GroundLayer* layer = ground ? &*ground : nullptr;
     std::vector<uint8_t> opaque;
@@ -174,7 +195,7 @@ CloudTransfer::Impl::traceBeam(const Cloud& cloud, const CloudTransferOptions& o
         for (size_t i = 0; i < n; ++i) opaque[i] = surfaceOf[i] != FogSurfaces::kNone;
     }
     SolarBeamResult beam = traceSolarBeam(cloud.voxels(), kappa, toSun, up, options.periodic,
-        options.beamRaysPerVoxel, options.irradiance / outputScale, interrupt, layer,
+        options.beamRaysPerVoxel, F0 / outputScale, interrupt, layer,
         surfaces ? &opaque : nullptr);
     if (interrupt) interrupt->end();
     incident = beam.incident;
@@ -207,6 +228,23 @@ CloudTransfer::Impl::traceBeam(const Cloud& cloud, const CloudTransferOptions& o
         beamJ[i] = kappa[i] > 0.f
             ? float(deposited[i] / (4.0 * kPi * double(kappa[i]))) : 0.f;
     }
+}
+
+// The sky: per direction and sense, its mean radiance over the cell a line comes from.
+void
+CloudTransfer::Impl::setSky(const CloudTransferOptions& options, const DirectionSet& directions,
+    const openvdb::math::Transform& transform)
+{
+    skyIn.clear();
+    if (options.sky.empty()) return;
+    const std::vector<openvdb::Vec3f> cells = options.sky.cellMeans(directions, transform);
+    skyIn.resize(cells.size());
+    for (size_t d = 0; d < cells.size() / 2; ++d) {
+        // Light travelling along +sigma comes from the sky seen along -sigma.
+        skyIn[2 * d] = float(cells[2 * d + 1][options.channel] / outputScale);
+        skyIn[2 * d + 1] = float(cells[2 * d][options.channel] / outputScale);
+    }
+    if (std::all_of(skyIn.begin(), skyIn.end(), [](float L) { return L == 0.f; })) skyIn.clear();
 }
 
 // The medium's own emission (fire): a fixed source.
@@ -407,7 +445,9 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
         }
     }
     const size_t surfaces = options.surfaces ? options.surfaces->size() : 0;
-    const size_t n = cloud.size() * tiles + footprint + surfaces;
+    // A periodic box is solved filled (filledBox()).
+    const size_t filled = options.periodic ? size_t(cloud.voxels().bbox().volume()) : cloud.size();
+    const size_t n = filled * tiles + footprint + surfaces;
     const size_t t = size_t(std::max(threads, 1));
     const int order = phaseOrderFor(options);
     const size_t M = size_t(order + 1) * size_t(order + 1);
@@ -428,7 +468,9 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     }
     // The copies of a narrow periodic box, or the ground's layer added: coordinates,
     // extinction, the voxel copied, index.
-    if (tiles > 1 || footprint > 0 || surfaces > 0) perVoxel += 12 + 4 + 4 + 8;
+    if (tiles > 1 || footprint > 0 || surfaces > 0 || filled > cloud.size()) {
+        perVoxel += 12 + 4 + 4 + 8;
+    }
     size_t bytes = n * perVoxel;
     // Surfaces: the voxel each solved one is (in each pattern's order too), and per surface
     // voxel its normal, albedo, area, emission, Z, direct and landed power, per group what lands.
@@ -471,6 +513,7 @@ CloudTransfer::fingerprint() const
     if (impl.ground) h = hashBytes(&impl.groundAlbedo, sizeof(double), h);
     if (impl.surfaces) h = impl.surfaces->hash(h);
     h = hashBytes(impl.emitSource.data(), impl.emitSource.size() * sizeof(float), h);
+    h = hashBytes(impl.skyIn.data(), impl.skyIn.size() * sizeof(float), h);
     return h;
 }
 
@@ -493,6 +536,7 @@ CloudTransfer::saveState(SolverState& state) const
         state.put("surfaceLanded", impl.surfaceLanded);
         state.put("surfaceAbsorptance", &mBudget.surfaceAbsorptance, 1);
     }
+    if (!impl.skyIn.empty()) state.put("skyIncident", &impl.skyIncident, 1);
     if (impl.mixer) impl.mixer->save(state, "anderson.");
 }
 
@@ -513,9 +557,12 @@ CloudTransfer::restoreState(const SolverState& state)
         impl.surfaceLanded = state.get<double>("surfaceLanded", impl.surfaceLanded.size());
         mBudget.surfaceAbsorptance = state.get<double>("surfaceAbsorptance", 1)[0];
     }
+    if (!impl.skyIn.empty()) impl.skyIncident = state.get<double>("skyIncident", 1)[0];
     const double emitted = impl.emitted + impl.mediumEmitted;
-    mBudget.emitted = emitted > 0.0 ? emitted / (impl.incident + emitted) : 0.0;
-    mBudget.mediumEmitted = emitted > 0.0 ? impl.mediumEmitted / (impl.incident + emitted) : 0.0;
+    const double total = impl.incident + impl.skyIncident + emitted;
+    mBudget.emitted = emitted > 0.0 ? emitted / total : 0.0;
+    mBudget.mediumEmitted = emitted > 0.0 ? impl.mediumEmitted / total : 0.0;
+    mBudget.sky = impl.skyIncident > 0.0 ? impl.skyIncident / total : 0.0;
     if (impl.mixer) impl.mixer->restore(state, "anderson.");
     mBudget.incident = budget[0];
     mBudget.albedo = budget[1];
@@ -657,6 +704,7 @@ CloudTransfer::describe() const
     if (mImpl->surfaces) {
         os << ", with " << withCommas(mImpl->surfaces->size()) << " surface voxels";
     }
+    if (!mOptions.sky.empty()) os << ", under " << mOptions.sky.describe();
     if (isRgb(mCloud, mOptions)) os << " (channel " << mOptions.channel << ")";
     return os.str();
 }

@@ -23,10 +23,12 @@
 // by step, so energy is conserved as before; a voxel is finished when the next one on its line
 // is met.
 //
-// Light source: the solar beam (SolarBeam.h), attenuated exactly along its own direction; the
-// power D_v it loses in voxel v is the first-order source. Diffuse light is iterated (source
-// iteration): with J_v the mean radiance over directions, sum_sigma Omega_sigma L_bar / (4 pi),
-// and isotropic scattering,
+// Light sources: the solar beam (SolarBeam.h), attenuated exactly along its own direction (the
+// power D_v it loses in voxel v is the first-order source), and a sky (CloudTransferOptions::sky):
+// the radiance a line starts with where it enters the box from outside (a periodic box: through
+// the top and bottom, and the side layers a horizontal direction drifts in by). Diffuse light
+// is iterated (source iteration): with J_v the mean radiance over directions,
+// sum_sigma Omega_sigma L_bar / (4 pi), and isotropic scattering,
 //
 //     S_v = omega0_v (J_v + D_v / (4 pi sigma_t,v))     (per unit volume: extinguished power
 //                                                         times omega0, re-emitted over 4 pi)
@@ -47,7 +49,9 @@
 //
 // Boundaries: open (light leaving the box is gone), or periodic across the two horizontal axes:
 // light leaving a side face re-enters through the opposite one at the same height, lagged by one
-// iteration, matched layer by layer (PeriodicBoundary.h). Narrow periodic boxes are solved as
+// iteration, matched layer by layer (PeriodicBoundary.h) between the lines of the box filled
+// (a sparse medium's empty voxels added: filledBox(); else lines through its gaps, and the sky
+// they carry, would be missing from the match). Narrow periodic boxes are solved as
 // several copies side by side (CloudTransferOptions::minPeriod): all lines of a direction
 // entering one layer of a face have the same phase (a naive line's pattern repeats), so a
 // near-horizontal direction rises by a whole number of layers per wrap instead of its true
@@ -82,6 +86,7 @@
 #include "vdbrad/core/Checkpoint.h"
 #include "vdbrad/scene/Cloud.h"
 #include "vdbrad/scene/Scene.h"
+#include "vdbrad/scene/Sky.h"
 #include "vdbrad/sweep/Acceleration.h"
 #include "vdbrad/sweep/DirectionSet.h"
 #include "vdbrad/sweep/FixedPointIteration.h"
@@ -124,6 +129,16 @@ struct CloudTransferOptions
     double sunZenith = 0.0, sunAzimuth = 0.0;
     /// Beam irradiance on a plane normal to the beam, F0 >= 0.
     double irradiance = 1.0;
+    /// The beam's colour: channel c's irradiance is irradiance x sunColour[c] (each >= 0); not
+    /// grey: an RGB solve (solveCloud()).
+    openvdb::Vec3d sunColour{1.0, 1.0, 1.0};
+    /// Light from every direction outside the box (scene/Sky.h; empty: none): each sweep
+    /// direction's lines start, in the pass with the sources, with the sky's mean radiance over
+    /// that direction's cell where they enter the box from outside (not through a periodic
+    /// side face, not up out of the ground's layer, not from a surface voxel facing a closed
+    /// cavity): the boundary value of the transfer equation, so the sweeps carry it like any
+    /// radiance. An RGB sky makes the solve RGB.
+    Sky sky;
     /// The vertical axis: 0 x, 1 y (Houdini's and OpenVDB's default), 2 z (Blender's).
     int up = 1;
     /// Periodic across the two horizontal axes (see the file comment).
@@ -176,9 +191,11 @@ struct CloudTransferOptions
 /// Where the incident sunlight went, as fractions of the incident power (after the last sweep).
 struct CloudBudget
 {
-    /// Beam power entering the box plus the power the surfaces emit (units of F0 x voxel
-    /// face); the fractions below are of it.
+    /// Beam power entering the box plus the sky's plus the power the surfaces and the medium
+    /// emit (units of F0 x voxel face); the fractions below are of it.
     double incident = 0.0;
+    /// The sky's share of `incident` (CloudTransferOptions::sky).
+    double sky = 0.0;
     double albedo = 0.0;         ///< leaving upwards
     /// Leaving downwards, direct beam included: onto the ground where there is one (its
     /// irradiance, every arrival counted), so with a ground it includes light reflected back

@@ -50,8 +50,10 @@ channelOf(const Attribute& a, size_t i, int c)
 inline bool
 isRgb(const Cloud& cloud, const CloudTransferOptions& o)
 {
+    const openvdb::Vec3d& sun = o.sunColour;
     return cloud.albedo().isRgb() || cloud.emission().isRgb()
-        || (o.surfaces && o.surfaces->isRgb());
+        || (o.surfaces && o.surfaces->isRgb()) || o.sky.isRgb()
+        || sun[0] != sun[1] || sun[1] != sun[2];
 }
 
 namespace detail {
@@ -123,6 +125,13 @@ struct CloudTransfer::Impl
     std::vector<float> emitSource;
     std::vector<double> deposited;   // beam power lost per voxel
     double incident = 0.0, directOut = 0.0;   // at the internal irradiance (see outputScale)
+    // The sky (CloudTransferOptions::sky), at the internal irradiance: per direction the
+    // radiance a line starts with, [2d] sweeping along +sigma (from the sky's -sigma cell),
+    // [2d + 1] along -sigma (empty: no sky); the power it brought in the last sweep.
+    std::vector<float> skyIn;
+    double skyIncident = 0.0;
+    void setSky(const CloudTransferOptions& options, const DirectionSet& directions,
+        const openvdb::math::Transform& transform);
     double outputScale = 1.0;        // F0 / the internal irradiance: a power of two
     std::vector<float> diffuseJ;     // diffuse mean radiance of the last sweep
     // Mean escape factor M_v per voxel: Y_00^2 sum_{directions, senses} Omega f(tau), from the
@@ -168,6 +177,7 @@ struct CloudTransfer::Impl
         const std::vector<double>& surfaceEmits;
         std::array<std::vector<double>, SweepSchedule::kGroups> onSurface;
         std::array<double, SweepSchedule::kGroups> backs{};
+        std::array<double, SweepSchedule::kGroups> skyEntered{};   // the sky's power, per group
     };
     // Anisotropic scattering works on a batch of a group's directions at a time: the sources'
     // higher-moment part for every voxel and (direction, sense) of the batch by one product of

@@ -270,4 +270,36 @@ PeriodicBoundary::wrap(size_t d, const std::vector<double>& exits, double share,
     return transit;
 }
 
+double
+PeriodicBoundary::skyDrift(size_t d, double rise, const std::array<float, 2>& radiance,
+    double etendue, std::vector<double>& entry) const
+{
+    if (rise <= 0.0) return 0.0;
+    double added = 0.0;
+    // wrap() sends layer l's light to l + whole + k with weight part[k] (per half, share 1/2):
+    // where that source layer lies outside the box, the sky sends it instead.
+    for (int drift : {1, -1}) {
+        const double shift = drift * rise, whole = std::floor(shift);
+        const double part[2] = {1.0 - (shift - whole), shift - whole};
+        for (size_t sf = 0; sf < 12; ++sf) {
+            const double L = radiance[sf / 6];
+            if (L == 0.0) continue;
+            for (int t = 0; t < mLayers; ++t) {
+                const size_t e = sf * size_t(mLayers) + size_t(t);
+                const uint32_t lines = enterCount(d, e);
+                if (lines == 0) continue;
+                double outside = 0.0;
+                for (int k = 0; k < 2; ++k) {
+                    const int from = t - int(whole) - k;
+                    if (from < 0 || from >= mLayers) outside += part[k];
+                }
+                const double p = 0.5 * outside * L * etendue * lines;
+                entry[e] += p;
+                added += p;
+            }
+        }
+    }
+    return added;
+}
+
 } // namespace vdbrad

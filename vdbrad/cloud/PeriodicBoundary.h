@@ -99,6 +99,14 @@ public:
     double wrap(size_t d, const std::vector<double>& exits, double share, int drift, double rise,
         double upward, std::vector<double>& into, std::array<double, 2>& escaped) const;
 
+    /// @brief The sky's light entering the side faces of horizontal direction @a d (@a rise
+    /// > 0) in its sources pass: a half cell drifting up re-enters its lowest layers from below
+    /// the box, one drifting down its highest from above (wrap() feeds the others), so those
+    /// layers take the sky's @a radiance (per sense) over their lines' @a etendue, added to
+    /// @a entry (one slice). Returns the power added.
+    double skyDrift(size_t d, double rise, const std::array<float, 2>& radiance, double etendue,
+        std::vector<double>& entry) const;
+
     /// @brief After a pass of direction @a d with its sources: follow the light wrapping around
     /// the period at once, pass after pass (@a pass(), which sweeps with @a entry as the light
     /// entering the side faces and fills @a exits), until what still wraps is negligible, and

@@ -16,6 +16,7 @@ budgetLine(const CloudBudget& b, const CloudTransferOptions& options)
            << ", absorbed by them " << b.surfaceAbsorptance;
     }
     if (b.mediumEmitted > 0.0) os << ", emitted by the medium " << b.mediumEmitted;
+    if (b.sky > 0.0) os << "; the sky's share of the incident " << b.sky;
     os << "; balance " << b.balance();
     return os.str();
 }

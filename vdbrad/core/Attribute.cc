@@ -41,10 +41,12 @@ Attribute::subset(const std::vector<uint32_t>& at) const
     a.mUniform = mUniform;
     if (mStorage == Storage::Grey) {
         a.mGrey.resize(at.size());
-        for (size_t k = 0; k < at.size(); ++k) a.mGrey[k] = mGrey[at[k]];
+        for (size_t k = 0; k < at.size(); ++k) a.mGrey[k] = at[k] == kNone ? 0.f : mGrey[at[k]];
     } else if (mStorage == Storage::Rgb) {
         a.mRgb.resize(at.size());
-        for (size_t k = 0; k < at.size(); ++k) a.mRgb[k] = mRgb[at[k]];
+        for (size_t k = 0; k < at.size(); ++k) {
+            a.mRgb[k] = at[k] == kNone ? openvdb::Vec3f(0.f) : mRgb[at[k]];
+        }
     }
     return a;
 }

@@ -79,8 +79,10 @@ public:
         float hi = std::numeric_limits<float>::max());
 
     /// Build from explicit per-voxel arrays (no validation).
-    /// The values of the voxels @a at (indices into this one), in that order, stored the same
-    /// way (a uniform value stays uniform).
+    /// An index of subset() that takes no voxel: its value is zero.
+    static constexpr uint32_t kNone = 0xffffffffu;
+    /// The values of the voxels @a at (indices into this one, or kNone), in that order, stored
+    /// the same way (a uniform value stays uniform).
     Attribute subset(const std::vector<uint32_t>& at) const;
     static Attribute fromGrey(std::vector<float> values);
     static Attribute fromRgb(std::vector<openvdb::Vec3f> values);

@@ -652,23 +652,26 @@ Renderer::setCloud(const openvdb::GridPtrVec& grids, openvdb::util::NullInterrup
         const Attribute j = Attribute::sample(*J, mCloud.voxels(), mOptions.cloudSource, 0.f);
         const Attribute& albedo = mCloud.albedo();
         // What the medium sends towards the eye per unit of extinction: albedo x J, and
-        // its own emission, epsilon / sigma_t (Cloud.h).
+        // its own emission, epsilon / sigma_t (Cloud.h); times pi, as pixels hold radiosity
+        // (pi x radiance) everywhere: a conservative cloud in a uniform sky then vanishes into
+        // the background (pi L), and a ground (rho E) shows beside it in the same units.
         const Attribute& emission = mCloud.emission();
         auto emitted = [&](size_t i) {
             return mCloud.extinction(i) > 0.f ? emission.rgb(i) / mCloud.extinction(i)
                                               : Vec3f(0.f);
         };
+        const float pi = float(kPi);
         const size_t n = mCloud.size();
         if (j.isRgb() || albedo.isRgb() || emission.isRgb()) {
             std::vector<Vec3f> s(n);
             for (size_t i = 0; i < n; ++i) {
                 const Vec3f a = albedo.rgb(i), v = j.rgb(i);
-                s[i] = Vec3f(a[0] * v[0], a[1] * v[1], a[2] * v[2]) + emitted(i);
+                s[i] = (Vec3f(a[0] * v[0], a[1] * v[1], a[2] * v[2]) + emitted(i)) * pi;
             }
             mSource = Attribute::fromRgb(std::move(s));
         } else {
             std::vector<float> s(n);
-            for (size_t i = 0; i < n; ++i) s[i] = albedo.grey(i) * j.grey(i) + emitted(i)[0];
+            for (size_t i = 0; i < n; ++i) s[i] = (albedo.grey(i) * j.grey(i) + emitted(i)[0]) * pi;
             mSource = Attribute::fromGrey(std::move(s));
         }
     } else {

@@ -1,6 +1,7 @@
 #include "vdbrad/request/CloudRequest.h"
 
 #include "vdbrad/request/SharedOptions.h"
+#include "vdbrad/request/SurfaceRequest.h"
 
 #include "vdbrad/core/GridContract.h"
 #include "vdbrad/core/TextFormat.h"
@@ -26,7 +27,8 @@ mediumOptions()
 {
     return {
         {"sun", OptionType::String, "0,0", "60,30",
-            "sun zenith angle from the up axis, in [0, 89.9], and azimuth, degrees"},
+            "sun zenith angle from the up axis, in [0, 89.9], and azimuth, degrees (with "
+            "--sky, --sky-model or --environment: no sun unless given, or the map's)"},
         options::up(),
         {"periodic", OptionType::Flag, "", "",
             "wrap light around the two horizontal axes (a tile of an infinite field)"},
@@ -70,13 +72,15 @@ mediumOptions()
             "multiplies the emission grid"}.atLeast(0),
         {"emission-color", OptionType::String, "1,1,1", "1,0.45,0.1",
             "linear RGB colour of the emission (not grey: an RGB solve)"},
-        OptionSpec{"irradiance", OptionType::Float, "1", "3",
-            "sun irradiance F0 on a plane normal to the beam"}.atLeast(0),
+        {"irradiance", OptionType::String, "1", "3",
+            "sun irradiance F0 on a plane normal to the beam (grey, or linear r,g,b: an RGB "
+            "solve)"},
         OptionSpec{"ground-albedo", OptionType::Float, "", "0.4",
             "a Lambertian ground of this albedo under the box (its footprint; with "
             "--periodic the whole plane) reflecting light back into the cloud; writes "
             "its irradiance as `ground_irradiance`, one layer of voxels below the box. "
-            "Default: none (light leaving downwards is gone)"}.within(0, 1),
+            "Default: none (light leaving downwards is gone). --sky-model clear: also the "
+            "clear sky's ground below the horizon (default 0.2 there)"}.within(0, 1),
         OptionSpec{"surface-albedo", OptionType::Float, "0.5", "0.7",
             "albedo of the surfaces where the file has a surface but no `albedo` "
             "grid"}.within(0, 1),
@@ -123,13 +127,57 @@ phaseFunction(const Request& r)
     }
 }
 
+// The beam's irradiance F0 and colour from an RGB irradiance.
+void
+setSunIrradiance(const openvdb::Vec3d& F, CloudTransferOptions& o)
+{
+    o.irradiance = std::max({F[0], F[1], F[2]});
+    o.sunColour = o.irradiance > 0.0 ? F / o.irradiance : openvdb::Vec3d(1.0);
+}
+
+// The sun (always there unless a sky is given without --sun) and the sky: --sky,
+// --sky-model clear, --environment (a sun in the map is the sun).
+void
+setLight(const Request& r, CloudTransferOptions& o)
+{
+    const bool skyGiven = r.has("sky") || r.getString("sky-model") == "clear"
+        || r.has("environment");
+    const openvdb::Vec3d F = r.colour("irradiance");
+    std::optional<Sun> sun;
+    if (!skyGiven || r.has("sun")) {
+        sun = Sun{o.sunZenith, o.sunAzimuth, o.up, F, 0.53};
+        setSunIrradiance(F, o);
+    } else {
+        if (r.has("irradiance")) {
+            r.fail(r.spell("irradiance") + " with a sky needs " + r.spell("sun"));
+        }
+        o.irradiance = 0.0;
+    }
+    o.sky = options::skyOf(r, sun, o.groundAlbedo.value_or(0.2), o.up);
+    if (const auto& mapSun = o.sky.sun()) {
+        if (r.has("sun") || r.has("irradiance")) {
+            r.fail(r.spell("environment") + " holds a sun (" + o.sky.describe() + "); "
+                + r.spell("sun") + " and " + r.spell("irradiance") + " would add a second");
+        }
+        if (!(mapSun->zenith <= 89.9)) {
+            r.fail(r.spell("environment") + ": its sun is " + std::to_string(mapSun->zenith)
+                + " degrees from the zenith; a cloud's sun must be within 89.9 (turn the map "
+                "with " + r.spell("up") + ")");
+        }
+        o.sunZenith = mapSun->zenith;
+        o.sunAzimuth = mapSun->azimuth;
+        setSunIrradiance(mapSun->irradiance, o);
+    }
+}
+
 } // namespace
 
 const std::vector<OptionSpec>&
 cloudSolveOptions()
 {
-    static const std::vector<OptionSpec> table = concat(concat(concat(concat(mediumOptions(),
-        iterationOptions()), options::checkpoints()), options::resources()),
+    static const std::vector<OptionSpec> table = concat(concat(concat(concat(concat(
+        mediumOptions(), options::sky()), iterationOptions()), options::checkpoints()),
+        options::resources()),
         {{"output-name", OptionType::String, "mean_intensity", "scatter",
             "name of the output grid (e.g. `scatter` for Houdini volume shaders)"}});
     return table;
@@ -157,6 +205,7 @@ CloudSolve::CloudSolve(const Request& r, const Distribution* ranks)
         r.fail(r.spell("sun") + ": the zenith angle must be in [0, 89.9] degrees");
     }
     o.up = r.choice<int>("up", {{"x", 0}, {"y", 1}, {"z", 2}});
+    if (r.has("ground-albedo")) o.groundAlbedo = r.getFloat("ground-albedo");
     o.periodic = r.flag("periodic");
     if (const auto v = r.autoOr("min-period", 0, 4096, "a voxel count")) o.minPeriod = *v;
     if (r.has("min-period") && !o.periodic) {
@@ -167,7 +216,7 @@ CloudSolve::CloudSolve(const Request& r, const Distribution* ranks)
     }
     o.maxIterations = r.getInt("iterations");
     o.tolerance = r.getFloat("tolerance");
-    o.irradiance = r.getFloat("irradiance");
+    setLight(r, o);
     if (r.getString("output-name").empty()) r.fail(r.spell("output-name") + " must not be empty");
     o.phase = phaseFunction(r);
     if (const auto v = r.autoOr("phase-order", 0, 32, "an order")) o.phaseOrder = *v;
@@ -178,7 +227,6 @@ CloudSolve::CloudSolve(const Request& r, const Distribution* ranks)
         {{"constant", VoxelSource::Constant}, {"linear", VoxelSource::Linear}});
     o.harmonicWeights = r.getString("weights") == "harmonic";
     o.andersonDepth = r.getInt("anderson-depth");
-    if (r.has("ground-albedo")) o.groundAlbedo = r.getFloat("ground-albedo");
     SolveControl probe;
     options::setCheckpoints(r, 0, probe);
     memoryLimit(r, ranks);   // a bad --max-memory fails before any work
@@ -207,10 +255,11 @@ CloudSolve::read(const openvdb::GridPtrVec& grids, openvdb::util::NullInterrupte
     mCloud = buildCloud(grids, mCloudOptions, interrupt);
     mRead = true;
     // Unlit, the answer is 0 everywhere: refused before any time is spent on it.
-    if (!(mOptions.irradiance > 0.0) && mCloud.emission().isZero() && !mScene.hasEmission()) {
-        OPENVDB_THROW(openvdb::ValueError, "nothing lights the cloud: " + r.spell("irradiance")
-            + " is 0, the medium does not emit (no fire where the density is) and no surface "
-            "emits");
+    if (!(mOptions.irradiance > 0.0) && !(mOptions.sky.horizontalIrradiance().length() > 0.0)
+        && mCloud.emission().isZero() && !mScene.hasEmission()) {
+        OPENVDB_THROW(openvdb::ValueError, "nothing lights the cloud: no sun ("
+            + r.spell("irradiance") + " is 0), no " + r.spell("sky") + " or " + r.spell("environment") + ", the medium "
+            "does not emit (no fire where the density is) and no surface emits");
     }
     if (mCloud.lostEmitters() > 0) {
         mWarnings.push_back(withCommas(mCloud.lostEmitters()) + " voxels of '"
@@ -253,6 +302,7 @@ CloudSolve::run(openvdb::util::NullInterrupter* interrupt, SolveControl control)
         &ground, &radiosity);
     intensity->setName(mRequest.getString("output-name"));
     recordEmission(*intensity, mCloud, mCloudOptions);
+    recordLight(mRequest, *intensity);
     result.grids.push_back(intensity);
     if (ground) result.grids.push_back(ground);
     if (radiosity) result.grids.push_back(radiosity);

@@ -1,11 +1,50 @@
 #include "vdbrad/request/SharedOptions.h"
 
 #include "vdbrad/core/Constants.h"
+#include "vdbrad/core/Errors.h"
+#include "vdbrad/render/ImageIO.h"
 #include "vdbrad/sweep/Acceleration.h"
 #include "vdbrad/sweep/DirectionSet.h"
 
+#include <openvdb/Exceptions.h>
+
+#include <fstream>
+#include <iterator>
+
 namespace vdbrad {
 namespace options {
+
+namespace {
+
+// The latitude-longitude map of --environment, from its file.
+Sky
+environmentOf(const Request& r, int up)
+{
+    const std::string path = r.getString("environment");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) r.fail(r.spell("environment") + ": cannot open '" + path + "'");
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    Image map;
+    try {
+        map = decodeExr(bytes);
+    } catch (const openvdb::Exception& e) {
+        r.fail(r.spell("environment") + ": '" + path + "' is not a readable OpenEXR image ("
+            + errorMessage(e) + ")");
+    }
+    if (map.width != 2 * map.height) {
+        r.fail(r.spell("environment") + ": '" + path + "' is " + std::to_string(map.width) + " x "
+            + std::to_string(map.height) + " pixels; a latitude-longitude map is twice as wide "
+            "as it is high");
+    }
+    try {
+        return Sky::fromMap(map.width, map.height, map.pixels, up,
+            r.getFloat("environment-rotation"));
+    } catch (const openvdb::ValueError& e) {
+        r.fail(r.spell("environment") + ": '" + path + "': " + errorMessage(e));
+    }
+}
+
+} // namespace
 
 std::vector<OptionSpec>
 scene()
@@ -89,6 +128,59 @@ up()
 {
     return OptionSpec{"up", OptionType::String, "y", "z",
         "vertical axis: y (Houdini), z (Blender) or x"}.oneOf({"x", "y", "z"});
+}
+
+std::vector<OptionSpec>
+sky()
+{
+    return {
+        {"sky", OptionType::String, "", "0.3",
+            "a uniform sky of this radiance (grey, or linear r,g,b): what a voxel facing the "
+            "outside receives from each direction in which it sees no voxel (diffuse scenes), "
+            "what enters a cloud's box from each direction"},
+        OptionSpec{"sky-model", OptionType::String, "uniform", "clear",
+            "uniform: --sky's radiance; clear: Preetham's clear sky for the --sun's position "
+            "(the paper's luminance in kcd/m^2 as radiance, so a clear day's sun is about "
+            "--irradiance 100; Blender's 'Preetham' Sky Texture is 0.06 of it) over a uniform "
+            "ground"}
+            .oneOf({"uniform", "clear"}),
+        OptionSpec{"turbidity", OptionType::Float, "3", "2",
+            "--sky-model clear: the haze (2 very clear, 3 clear, 6 hazy)"}.within(1, 10),
+        {"environment", OptionType::String, "", "sky.exr",
+            "a latitude-longitude HDR map (OpenEXR, linear RGB) lighting the scene from outside: "
+            "each direction takes the map's mean over its own cell; a sun in it (a small region "
+            "100x brighter than the median) is split off and computed exactly as --sun is"},
+        {"environment-rotation", OptionType::Float, "0", "90",
+            "--environment: turns the map about the --up axis, degrees (0: the map's centre "
+            "column looks along the first horizontal axis, as Blender's Environment Texture)"},
+    };
+}
+
+Sky
+skyOf(const Request& r, const std::optional<Sun>& sun, double groundAlbedo, int up)
+{
+    const bool clear = r.getString("sky-model") == "clear";
+    if (r.has("turbidity") && !clear) {
+        r.fail(r.spell("turbidity") + " needs " + r.spell("sky-model") + " clear");
+    }
+    if (r.has("environment-rotation") && !r.has("environment")) {
+        r.fail(r.spell("environment-rotation") + " needs " + r.spell("environment"));
+    }
+    const int given = int(r.has("sky")) + int(clear) + int(r.has("environment"));
+    if (given > 1) {
+        r.fail("one sky at a time: " + r.spell("sky") + ", " + r.spell("sky-model")
+            + " clear or " + r.spell("environment"));
+    }
+    if (r.has("sky")) return Sky::uniform(r.colour("sky"));
+    if (clear) {
+        if (!sun) {
+            r.fail(r.spell("sky-model") + " clear needs " + r.spell("sun") + " (its position)");
+        }
+        return Sky::clear(sun->zenith, sun->azimuth, sun->up, r.getFloat("turbidity"),
+            groundAlbedo, sun->irradiance);
+    }
+    if (r.has("environment")) return environmentOf(r, up);
+    return Sky();
 }
 
 std::vector<OptionSpec>

@@ -5,6 +5,8 @@
 #include "vdbrad/request/Request.h"
 
 #include "vdbrad/scene/Scene.h"
+#include "vdbrad/scene/Sky.h"
+#include "vdbrad/scene/Sun.h"
 #include "vdbrad/sweep/FixedPointIteration.h"
 
 #include <string>
@@ -28,6 +30,13 @@ OptionSpec andersonDepth();
 std::vector<OptionSpec> checkpoints();
 /// --up: the vertical axis the sun's angles are measured from.
 OptionSpec up();
+/// --sky, --sky-model, --turbidity, --environment, --environment-rotation: light from outside.
+std::vector<OptionSpec> sky();
+/// @brief The sky @a request asks for (empty: none), one at a time: --sky, --sky-model clear
+/// at @a sun's position and irradiance (needs one) over a ground of @a groundAlbedo, or
+/// --environment (turned about @a up; a sun found in the map is the result's sun()).
+/// @throw OptionError for contradictions, an unreadable map
+Sky skyOf(const Request& request, const std::optional<Sun>& sun, double groundAlbedo, int up);
 /// --threads and --max-memory.
 std::vector<OptionSpec> resources();
 

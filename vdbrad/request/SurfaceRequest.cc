@@ -107,28 +107,11 @@ solverOptions()
 std::vector<OptionSpec>
 lightOptions()
 {
-    return {
-        {"sky", OptionType::String, "", "0.3",
-            "a uniform sky of this radiance (grey, or linear r,g,b): what a voxel facing the "
-            "outside receives from each direction in which it sees no voxel (diffuse scenes)"},
-        OptionSpec{"sky-model", OptionType::String, "uniform", "clear",
-            "uniform: --sky's radiance; clear: Preetham's clear sky for the --sun's position "
-            "(the paper's luminance in kcd/m^2 as radiance, so a clear day's sun is about "
-            "--irradiance 100; Blender's 'Preetham' Sky Texture is 0.06 of it) over a uniform "
-            "ground"}
-            .oneOf({"uniform", "clear"}),
-        OptionSpec{"turbidity", OptionType::Float, "3", "2",
-            "--sky-model clear: the haze (2 very clear, 3 clear, 6 hazy)"}.within(1, 10),
-        OptionSpec{"ground-albedo", OptionType::Float, "0.2", "0.3",
-            "--sky-model clear: the ground below the horizon reflects the sky's and the sun's "
-            "light with this albedo"}.within(0, 1),
-        {"environment", OptionType::String, "", "sky.exr",
-            "a latitude-longitude HDR map (OpenEXR, linear RGB) lighting the scene from outside: "
-            "each direction takes the map's mean over its own cell; a sun in it (a small region "
-            "100x brighter than the median) is split off and computed exactly as --sun is"},
-        {"environment-rotation", OptionType::Float, "0", "90",
-            "--environment: turns the map about the --up axis, degrees (0: the map's centre "
-            "column looks along the first horizontal axis, as Blender's Environment Texture)"},
+    std::vector<OptionSpec> o = options::sky();
+    o.insert(o.begin() + 3, OptionSpec{"ground-albedo", OptionType::Float, "0.2", "0.3",
+        "--sky-model clear: the ground below the horizon reflects the sky's and the sun's "
+        "light with this albedo"}.within(0, 1));
+    for (OptionSpec spec : std::vector<OptionSpec>{
         {"sun", OptionType::String, "", "40,30",
             "a sun: zenith angle from the --up axis, in [0, 90), and azimuth from the first "
             "horizontal axis towards the second (up y: x then z), degrees, as for solve-cloud; "
@@ -138,8 +121,10 @@ lightOptions()
             "--sun: irradiance on a plane normal to the beam (grey, or linear r,g,b)"},
         OptionSpec{"sun-diameter", OptionType::Float, "0.53", "2",
             "--sun: the disk's angular diameter, degrees (the penumbra's width)"}.within(0, 10),
-        options::up(),
-    };
+        options::up()}) {
+        o.push_back(std::move(spec));
+    }
+    return o;
 }
 
 // --sun and what comes with it; none without --sun.
@@ -172,52 +157,31 @@ sunOf(const Request& r, const std::string& method, DirectMode direct)
     return sun;
 }
 
-// The latitude-longitude map of --environment, from its file.
-Sky
-environmentOf(const Request& r)
-{
-    const std::string path = r.getString("environment");
-    std::ifstream in(path, std::ios::binary);
-    if (!in) r.fail(r.spell("environment") + ": cannot open '" + path + "'");
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    Image map;
-    try {
-        map = decodeExr(bytes);
-    } catch (const openvdb::Exception& e) {
-        r.fail(r.spell("environment") + ": '" + path + "' is not a readable OpenEXR image ("
-            + errorMessage(e) + ")");
-    }
-    if (map.width != 2 * map.height) {
-        r.fail(r.spell("environment") + ": '" + path + "' is " + std::to_string(map.width) + " x "
-            + std::to_string(map.height) + " pixels; a latitude-longitude map is twice as wide "
-            "as it is high");
-    }
-    try {
-        return Sky::fromMap(map.width, map.height, map.pixels,
-            r.choice<int>("up", {{"x", 0}, {"y", 1}, {"z", 2}}), r.getFloat("environment-rotation"));
-    } catch (const openvdb::ValueError& e) {
-        r.fail(r.spell("environment") + ": '" + path + "': " + errorMessage(e));
-    }
-}
-
 // The light options, and the metadata naming them on a solved file (solvedLight()).
 const char* const kLightOptions[] = {"sky", "sky-model", "turbidity", "ground-albedo",
     "environment", "environment-rotation", "sun", "irradiance", "sun-diameter", "up"};
 const char* const kLightMeta = "vdbrad:light";
 
-std::string
-lightText(const Request& r)
+} // namespace
+
+void
+recordLight(const Request& r, openvdb::GridBase& grid)
 {
     std::string text;
     for (const char* name : kLightOptions) {
-        if (!r.has(name)) continue;
+        if (!r.find(name) || !r.has(name)) continue;
+        // solve-cloud's own: its ground layer's albedo, the vertical axis of its default sun.
+        if (std::string(name) == "ground-albedo" && r.getString("sky-model") != "clear") continue;
+        if (std::string(name) == "up" && !r.has("sun") && !r.has("environment")) continue;
         std::string value = r.getString(name);
         // The map from wherever the picture is made.
         if (std::string(name) == "environment") value = std::filesystem::absolute(value).string();
         text += std::string(name) + "=" + value + "\n";
     }
-    return text;
+    if (!text.empty()) grid.insertMeta(kLightMeta, openvdb::StringMetadata(text));
 }
+
+namespace {
 
 // The light from outside the scene: --sky, --sky-model, --environment, --sun; the map's sun,
 // if it has one, becomes the solve's.
@@ -225,44 +189,28 @@ void
 lightOf(const Request& r, const std::string& method, RadiosityOptions& o)
 {
     o.sun = sunOf(r, method, o.direct);
-    const bool clear = r.getString("sky-model") == "clear";
-    for (const char* name : {"turbidity", "ground-albedo"}) {
-        if (r.has(name) && !clear) r.fail(r.spell(name) + " needs " + r.spell("sky-model") + " clear");
-    }
-    if (r.has("environment-rotation") && !r.has("environment")) {
-        r.fail(r.spell("environment-rotation") + " needs " + r.spell("environment"));
+    if (r.has("ground-albedo") && r.getString("sky-model") != "clear") {
+        r.fail(r.spell("ground-albedo") + " needs " + r.spell("sky-model") + " clear");
     }
     if (r.has("up") && !r.has("sun") && !r.has("environment")) {
         r.fail(r.spell("up") + " needs " + r.spell("sun") + " or " + r.spell("environment"));
     }
-    const int given = int(r.has("sky")) + int(clear) + int(r.has("environment"));
-    if (given > 1) {
-        r.fail("one sky at a time: " + r.spell("sky") + ", " + r.spell("sky-model")
-            + " clear or " + r.spell("environment"));
-    }
-    if (given == 0) return;
+    o.sky = options::skyOf(r, o.sun, r.getFloat("ground-albedo"),
+        r.choice<int>("up", {{"x", 0}, {"y", 1}, {"z", 2}}));
+    if (o.sky.empty()) return;
     if (method == "montecarlo") {
         r.fail("a sky does not apply to " + r.spell("method") + " montecarlo");
     }
-    if (r.has("sky")) {
-        o.sky = Sky::uniform(r.colour("sky"));
-    } else if (clear) {
-        if (!o.sun) r.fail(r.spell("sky-model") + " clear needs " + r.spell("sun") + " (its position)");
-        o.sky = Sky::clear(o.sun->zenith, o.sun->azimuth, o.sun->up, r.getFloat("turbidity"),
-            r.getFloat("ground-albedo"), o.sun->irradiance);
-    } else {
-        o.sky = environmentOf(r);
-        if (const auto& sun = o.sky.sun()) {
-            if (o.sun) {
-                r.fail(r.spell("environment") + " holds a sun (" + o.sky.describe() + "); "
-                    + r.spell("sun") + " would add a second");
-            }
-            if (o.direct == DirectMode::Sweep) {
-                r.fail(r.spell("environment") + " holds a sun, computed exactly: it needs "
-                    + r.spell("direct") + " exact or auto");
-            }
-            o.sun = *sun;
+    if (const auto& sun = o.sky.sun()) {
+        if (o.sun) {
+            r.fail(r.spell("environment") + " holds a sun (" + o.sky.describe() + "); "
+                + r.spell("sun") + " would add a second");
         }
+        if (o.direct == DirectMode::Sweep) {
+            r.fail(r.spell("environment") + " holds a sun, computed exactly: it needs "
+                + r.spell("direct") + " exact or auto");
+        }
+        o.sun = *sun;
     }
 }
 
@@ -471,8 +419,7 @@ SurfaceSolve::run(openvdb::util::NullInterrupter* interrupt, SolveControl contro
         openvdb::GridBase::Ptr radiosity = solveRadiosity(std::move(mScene), mOptions, interrupt,
             control, &specular);
         if (radiosity) {
-            const std::string light = lightText(mRequest);
-            if (!light.empty()) radiosity->insertMeta(kLightMeta, openvdb::StringMetadata(light));
+            recordLight(mRequest, *radiosity);
             result.grids.push_back(radiosity);
         }
         if (specular) result.grids.push_back(specular);
@@ -494,9 +441,14 @@ OutsideLight
 solvedLight(const openvdb::GridPtrVec& grids, std::vector<std::string>& warnings)
 {
     OutsideLight light;
-    const openvdb::GridBase::ConstPtr radiosity = findGrid(grids, names::kRadiosity);
-    if (!radiosity) return light;
-    const auto meta = radiosity->getMetadata<openvdb::StringMetadata>(kLightMeta);
+    // A surface solve's radiosity grid, else a cloud solve's.
+    openvdb::StringMetadata::ConstPtr meta;
+    if (const openvdb::GridBase::ConstPtr radiosity = findGrid(grids, names::kRadiosity)) {
+        meta = radiosity->getMetadata<openvdb::StringMetadata>(kLightMeta);
+    }
+    for (size_t i = 0; i < grids.size() && !meta; ++i) {
+        meta = grids[i]->getMetadata<openvdb::StringMetadata>(kLightMeta);
+    }
     if (!meta) return light;
     Request r("solve", surfaceSolveOptions());
     std::istringstream lines(meta->value());

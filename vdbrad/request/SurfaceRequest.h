@@ -75,7 +75,13 @@ struct OutsideLight
     std::optional<Sun> sun;
 };
 
-/// @brief The light a solved file was lit by from outside: its radiosity grid's
+/// @brief Record on @a grid the light from outside @a request (a surface or cloud solve's) was
+/// given (--sky, --sky-model, --environment, --sun and theirs) as `vdbrad:light` metadata, one
+/// `name=value` per line (nothing if none), for solvedLight().
+void recordLight(const Request& request, openvdb::GridBase& grid);
+
+/// @brief The light a solved file was lit by from outside: its radiosity grid's (else any
+/// grid's, a cloud solve's)
 /// `vdbrad:light` metadata (the solve's --sky, --sky-model, --environment, --sun and theirs,
 /// one `name=value` per line), read as the solve read them. Nothing if the file has none. A
 /// map that cannot be read any more gives a warning in @a warnings and no sky.

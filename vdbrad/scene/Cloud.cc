@@ -161,6 +161,28 @@ emissionAsSolved(const openvdb::GridBase& result, CloudOptions options)
     return options;
 }
 
+namespace {
+
+// The voxels @a index of a cloud each of which is @a cloud's voxel from[i] (kNoCloudVoxel: an
+// empty one), with their medium and emission.
+Cloud
+remapped(const Cloud& cloud, VoxelIndex index, std::vector<uint32_t> from,
+    std::vector<uint32_t>* source)
+{
+    std::vector<float> extinction(index.size(), 0.f);
+    for (size_t i = 0; i < index.size(); ++i) {
+        if (from[i] != kNoCloudVoxel) extinction[i] = cloud.extinction(from[i]);
+    }
+    Attribute albedo = cloud.albedo().subset(from), emission = cloud.emission().subset(from);
+    if (source) *source = std::move(from);
+    Cloud result(cloud.transform().copy(), std::move(index), std::move(extinction),
+        std::move(albedo), cloud.densityName());
+    result.setEmission(std::move(emission), cloud.emissionName(), cloud.lostEmitters());
+    return result;
+}
+
+} // namespace
+
 Cloud
 tileCloud(const Cloud& cloud, const openvdb::Coord& copies, std::vector<uint32_t>* source)
 {
@@ -187,14 +209,24 @@ tileCloud(const Cloud& cloud, const openvdb::Coord& copies, std::vector<uint32_t
             + openvdb::Coord(d.x() % dim.x(), d.y() % dim.y(), d.z() % dim.z());
         from[i] = uint32_t(voxels.find(ijk));
     }
-    std::vector<float> extinction(tiled.size());
-    for (size_t i = 0; i < tiled.size(); ++i) extinction[i] = cloud.extinction(from[i]);
-    Attribute albedo = cloud.albedo().subset(from), emission = cloud.emission().subset(from);
-    if (source) *source = std::move(from);
-    Cloud result(cloud.transform().copy(), std::move(tiled), std::move(extinction),
-        std::move(albedo), cloud.densityName());
-    result.setEmission(std::move(emission), cloud.emissionName(), cloud.lostEmitters());
-    return result;
+    return remapped(cloud, std::move(tiled), std::move(from), source);
+}
+
+Cloud
+filledBox(const Cloud& cloud, std::vector<uint32_t>* source)
+{
+    const VoxelIndex& voxels = cloud.voxels();
+    const openvdb::CoordBBox box = voxels.bbox();
+    VoxelIndex::checkVoxelCount(box.volume());
+    openvdb::MaskTree mask;
+    mask.denseFill(box, true, true);
+    VoxelIndex all(mask);
+    std::vector<uint32_t> from(all.size());
+    for (size_t i = 0; i < all.size(); ++i) {
+        const int64_t f = voxels.find(all.coord(i));
+        from[i] = f < 0 ? kNoCloudVoxel : uint32_t(f);
+    }
+    return remapped(cloud, std::move(all), std::move(from), source);
 }
 
 } // namespace vdbrad

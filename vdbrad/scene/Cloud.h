@@ -109,4 +109,15 @@ CloudOptions emissionAsSolved(const openvdb::GridBase& result, CloudOptions opti
 Cloud tileCloud(const Cloud& cloud, const openvdb::Coord& copies,
     std::vector<uint32_t>* source = nullptr);
 
+/// Marks a voxel that copies none of the cloud's (filledBox(); GroundLayer's cells likewise).
+constexpr uint32_t kNoCloudVoxel = Attribute::kNone;
+
+/// @brief @a cloud with every voxel of its bounding box, the added ones empty (no extinction,
+/// albedo or emission). A periodic box's side faces pass light layer by layer between the
+/// lines of a dense box (PeriodicBoundary.h); a sparse medium's lines would not match.
+/// @param source  if not null, set to the voxel of @a cloud that each voxel of the result is,
+///                kNoCloudVoxel for the added ones
+/// @throw openvdb::ValueError if the box has too many voxels (VoxelIndex)
+Cloud filledBox(const Cloud& cloud, std::vector<uint32_t>* source = nullptr);
+
 } // namespace vdbrad
