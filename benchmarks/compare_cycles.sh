@@ -20,7 +20,11 @@
 #   WORLD="--sky 1" LAMPS=off ...                 (light from outside, issue 45: vdbrad's solve
 #       options --sky, --sky-model clear, --environment, --sun and theirs, the same world in
 #       Cycles (cycles/cornell_cycles.py); LAMPS=off: the MTL's Ke read as 0, a copy of the mesh
-#       in OUT; output in /tmp/vdbrad_vs_cycles_NAME_world unless OUT is given)
+#       in OUT; output in /tmp/vdbrad_vs_cycles_NAME_world unless OUT is given; a --sun runs
+#       direct exact only; the references in OUT are reused: a new WORLD wants a new OUT)
+#   MESH=samples/meshes/bunny.obj CAMERA=0,0.25,-0.5,0,0.05,0,0,1,0,35 \
+#     WORLD="--sky-model clear --sun 45,30 --irradiance 100 --ground-albedo 0" ...
+#                                                 (the Stanford bunny under sun + sky, issue 45)
 set -euo pipefail
 # MESH: relative to the caller's directory, else to the repository's.
 mesh=${MESH:-}
@@ -53,6 +57,16 @@ if [ "${LAMPS-}" = off ]; then
   mesh=$out/$name.obj
 fi
 solve_opts="$solve_opts${WORLD:+ $WORLD}"
+# A sun (--sun) is computed exactly only: no `--direct sweep` run unless VDBRAD_DIRECT asks.
+directs=${VDBRAD_DIRECT-sweep exact}
+[ -n "${VDBRAD_DIRECT+set}" ] || ! grep -q -- '--sun' <<< "${WORLD-}" || directs=exact
+# Below the horizon vdbrad's clear sky is a ground of --ground-albedo (default 0.2), Blender's
+# Preetham texture the horizon repeated: the worlds agree there for --ground-albedo 0 only.
+if grep -q -- '--sky-model clear' <<< "${WORLD-}" \
+   && ! grep -qE -- '--ground-albedo 0(\.0*)?( |$)' <<< "$WORLD"; then
+  echo "warning: WORLD's clear sky without --ground-albedo 0: Cycles repeats the horizon below" \
+    "it, vdbrad shows a ground (background pixels and light from below differ)" >&2
+fi
 blender_run() {   # SAMPLES SEED OUT.exr
   WORLD=${WORLD-} blender -b -noaudio --factory-startup \
     --python benchmarks/cycles/cornell_cycles.py -- "$mesh" "$3" "$1" "$2" "$size" "$cam" \
@@ -72,15 +86,17 @@ labels=()
 rows=()   # tool,res,directions,direct,options,spp,seconds
 for run in ${VDBRAD_RUNS-64:1000 128:300 128:1000 128:3000 256:1000 256:3000 512:1000}; do
   res=${run%%:*}; dirs=${run##*:}
-  for direct in ${VDBRAD_DIRECT-sweep exact}; do
+  for direct in $directs; do
     opts=$solve_opts${VDBRAD_RENDER:+ $VDBRAD_RENDER}
     tag=$(echo "$opts" | tr -c 'a-zA-Z0-9.\n-' _)
     img="$out/vdbrad_${res}_${dirs}_${direct}${tag}.exr"
+    rm -f "$img"
     t=$(seconds sh -c "'$V' voxelize '$mesh' - --res $res --quiet \
       | '$V' solve - - --directions $dirs --tolerance 1e-4 --direct $direct --quiet \
         $solve_opts \
       | '$V' render - '$img' --res $size --camera $cam --exr-type float --aa 4 --quiet \
         ${VDBRAD_MESH-"--mesh '$mesh'"} ${VDBRAD_RENDER-}")
+    [ -s "$img" ] || { echo "vdbrad res $res, $dirs directions, direct $direct failed" >&2; exit 1; }
     images+=("$img"); labels+=("vdbrad res $res, $dirs directions, direct $direct $opts: $t s")
     rows+=("vdbrad,$res,$dirs,$direct,${opts//,/;},,$t")   # options' commas would split columns
   done

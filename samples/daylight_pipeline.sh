@@ -4,8 +4,9 @@
 # kcd/m^2 as Preetham's paper gives it, so a clear day's sun is ~100 klx), over pipes:
 #   vdbrad voxelize blocks.obj - | vdbrad solve - - --sky-model clear --sun 50,30 \
 #     --irradiance 100 | vdbrad render - blocks.exr --png blocks.png
-# Writes blocks.obj (three blocks on a ground, metres, y up), blocks_lit.vdb, blocks.exr and
-# blocks.png in the current folder. RES (voxels along the longest axis) and SIZE (image WxH)
+# Then a cumulus under the same sun and sky. Writes blocks.obj (three blocks on a ground, metres,
+# y up), blocks_lit.vdb, blocks.exr, blocks.png, cumulus_lit.vdb, cumulus.exr and cumulus.png in
+# the current folder. RES (voxels along the longest axis) and SIZE (image WxH)
 # trade quality for time.
 set -euo pipefail
 VDBRAD=${VDBRAD:-vdbrad}
@@ -32,4 +33,13 @@ box() {
   | tee blocks_lit.vdb \
   | "$VDBRAD" render - blocks.exr --png blocks.png --res "${SIZE:-640x480}" --quiet \
       --camera 9,8,-11,0,1,0,0,1,0,40
-echo "daylight_pipeline: blocks.obj -> blocks_lit.vdb, blocks.exr, blocks.png" >&2
+# A cloud under the same daylight: the sun's beam, the sky entering the box from every side and
+# a ground of albedo 0.3 under it (the clear sky's ground below the horizon too); the render
+# shows the sky behind it.
+"$VDBRAD" make cumulus - --res "${RES:-64}" --quiet \
+  | "$VDBRAD" solve-cloud - cumulus_lit.vdb --sky-model clear --sun 50,30 --irradiance 100 \
+      --ground-albedo 0.3 --quiet
+"$VDBRAD" render cumulus_lit.vdb cumulus.exr --png cumulus.png --res "${SIZE:-640x480}" --quiet \
+  --camera 0.5,1.2,-0.9,0.5,0.3,0.5,0,1,0,45
+echo "daylight_pipeline: blocks.obj -> blocks_lit.vdb, blocks.exr, blocks.png;" \
+  "cumulus_lit.vdb, cumulus.exr, cumulus.png" >&2

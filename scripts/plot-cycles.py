@@ -42,11 +42,17 @@ for r in rows:
         variants[r["options"]].append(r)
 markers = "svP*^<>ph"
 for k, (options, rs) in enumerate(sorted(variants.items())):
-    rs.sort(key=lambda r: int(r["res"]))
-    ax.plot([float(r["seconds"]) for r in rs], [100 * float(r["error"]) for r in rs],
-            markers[k % len(markers)], markersize=5, fillstyle="none",
+    rs.sort(key=lambda r: (int(r["res"]), int(r["directions"])))
+    t = [float(r["seconds"]) for r in rs]
+    e = [100 * float(r["error"]) for r in rs]
+    dirs = sorted({r["directions"] for r in rs}, key=int)
+    ax.plot(t, e, markers[k % len(markers)], markersize=5, fillstyle="none",
             label="vdbrad res %s, %s directions, %s" % (
-                "/".join(r["res"] for r in rs), rs[0]["directions"], options))
+                "/".join(sorted({r["res"] for r in rs}, key=int)), "/".join(dirs), options))
+    if len(dirs) > 1:   # several direction counts: label each point res:directions
+        for r, x, y in zip(rs, t, e):
+            ax.annotate("%s:%s" % (r["res"], r["directions"]), (x, y),
+                        textcoords="offset points", xytext=(4, 4), fontsize=7)
 
 cycles = sorted((r for r in rows if r["tool"] == "cycles"), key=lambda r: int(r["spp"]))
 if cycles:

@@ -150,7 +150,8 @@ for mat in bpy.data.materials:
 # The world: black, or the light from outside that vdbrad's solve options in $WORLD give (issue
 # 45), each pi times brighter in Cycles as the lamps are (a pixel shows radiance, vdbrad's
 # radiosity): --sky L or R,G,B (a Background of that colour); --sky-model clear with --sun and
-# --turbidity (the Preetham Sky Texture); --environment FILE [--environment-rotation DEG] (an
+# --turbidity (the Preetham Sky Texture; black below the horizon for --ground-albedo 0, as
+# vdbrad's ground is then); --environment FILE [--environment-rotation DEG] (an
 # Environment Texture, linear); --sun ZENITH,AZIMUTH --irradiance E --sun-diameter D (a Sun lamp of
 # strength pi E and that angle). --up gives the up axis of the OBJ's coordinates, which the import
 # keeps: Blender's sky and map textures take z as up and turn azimuth the other way, so a y-up
@@ -241,7 +242,24 @@ elif light.get("sky-model") == "clear" or "environment" in light:
             wlinks.new(mapping.outputs["Vector"], mapping2.inputs["Vector"])
             mapping = mapping2
     wlinks.new(mapping.outputs["Vector"], tex.inputs["Vector"])
-    wlinks.new(tex.outputs["Color"], background.inputs["Color"])
+    colour = tex.outputs["Color"]
+    if light.get("sky-model") == "clear" and float(light.get("ground-albedo", "0.2")) == 0.0:
+        # Below the horizon vdbrad's clear sky is a uniform ground of radiance --ground-albedo x
+        # (the sky's and the sun's horizontal irradiance) / pi, where Blender's Preetham texture
+        # repeats the horizon: the two agree for --ground-albedo 0, black below the horizon
+        # (the textures' z <= 0). Other albedos differ there (compare_cycles.sh warns).
+        xyz = wnodes.new("ShaderNodeSeparateXYZ")
+        wlinks.new(mapping.outputs["Vector"], xyz.inputs["Vector"])
+        above = wnodes.new("ShaderNodeMath")
+        above.operation = "GREATER_THAN"
+        above.inputs[1].default_value = 0.0
+        wlinks.new(xyz.outputs["Z"], above.inputs[0])
+        mask = wnodes.new("ShaderNodeMixRGB")
+        mask.inputs["Color1"].default_value = (0.0, 0.0, 0.0, 1.0)
+        wlinks.new(above.outputs["Value"], mask.inputs["Fac"])
+        wlinks.new(colour, mask.inputs["Color2"])
+        colour = mask.outputs["Color"]
+    wlinks.new(colour, background.inputs["Color"])
     background.inputs["Strength"].default_value = math.pi * (
         preetham_scale if light.get("sky-model") == "clear" else 1.0)
 scene = bpy.context.scene
