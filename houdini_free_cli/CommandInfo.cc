@@ -97,6 +97,24 @@ radiosityValues(const VdbFile& file, const std::string& label, int& channels)
 
 } // namespace
 
+namespace {
+
+// The warning for a scene whose voxels emit nothing: none when the file was solved under
+// light from outside (a solve's `vdbrad:light`).
+void
+warnUnlit(const std::string& label, const Scene& scene, const openvdb::GridPtrVec& grids)
+{
+    if (scene.hasEmission()) return;
+    for (const openvdb::GridBase::Ptr& g : grids) {
+        const auto light = g->getMetadata<openvdb::StringMetadata>("vdbrad:light");
+        if (light && !light->value().empty()) return;
+    }
+    warn(label, "nothing emits: the scene is dark unless lit from outside (solve's --sun, "
+        "--sky or --environment)");
+}
+
+} // namespace
+
 int
 runInfo(const Arguments& a)
 {
@@ -145,7 +163,7 @@ runInfo(const Arguments& a)
                         + " (--roughness)").c_str()) << "\n";
             }
             std::cout << "  solution:  " << (scene.isRgb() ? "RGB" : "grey") << " radiosity\n";
-            if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+            warnUnlit(label, scene, file.grids);
         } catch (const std::exception& e) {
             report("surface:  ", e);
         }
@@ -224,7 +242,7 @@ runSurface(const Arguments& a)
     describeReading(a, label, file, options.surface, names::kDensity);
     ProgressInterrupter progress(a.flag("quiet"));
     const Scene scene = forFile(label, [&] { return buildScene(file.grids, options, &progress); });
-    if (!scene.hasEmission()) warn(label, "nothing emits: the scene is dark");
+    warnUnlit(label, scene, file.grids);
     writeOutput(withGrids(file, sceneToGrids(scene)), out);
     return 0;
 }

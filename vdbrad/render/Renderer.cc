@@ -271,9 +271,10 @@ struct Renderer::Tracer
 
     // The final gather at index-space point p seen on voxel v (RenderOptions::gather): the
     // point moved onto v's plane (SurfacePlanes.h; inside its cube), E + rho (D + mean reflected
-    // radiosity of what cosine rays from half a voxel above it hit), the sample sequences hashed
-    // from @a h.
-    Vec3f gatherAt(const Vec3d& p, size_t v, uint64_t h)
+    // radiosity of what cosine rays from half a voxel above it hit), the rays about @a smooth
+    // (a mesh's or level set's normal there) or v's normal, the sample sequences hashed from
+    // @a h.
+    Vec3f gatherAt(const Vec3d& p, size_t v, uint64_t h, const Vec3f* smooth = nullptr)
     {
         const Scene& scene = mR.mScene;
         const Gather& g = *mR.mGather;
@@ -284,7 +285,7 @@ struct Renderer::Tracer
         for (int k = 0; k < 3; ++k) q[k] = std::clamp(q[k], c[k] - 0.5, c[k] + 0.5);
         const Vec3d direct = g.sampler.at(q, n, v, mixHash(h), *mDirect);
         const size_t N = size_t(mR.mOptions.gather);
-        const CosineRays rays(scene.normal(v), mixHash(h + 1), N);
+        const CosineRays rays(smooth ? *smooth : scene.normal(v), mixHash(h + 1), N);
         const bool closed = g.regions.region.empty() ? false : g.regions.region[v] != 0;
         const Vec3d origin = planes.rayOrigin(v, q);   // as shadow rays
         Vec3d sum(0.0);
@@ -292,8 +293,9 @@ struct Renderer::Tracer
         for (size_t s = 0; s < N; ++s) {
             const uint32_t hit = traceSurface(scene, planes, *mSurface, g.box, uint32_t(v), origin,
                 rays(s));
-            // A closed room's voxel leaving through its own cube: a digitisation crack.
-            if (hit == kRaySky && closed) continue;
+            // A closed room's voxel leaving through its own cube, or a ray from a curved
+            // surface's voxel meeting the back of its neighbour: digitisation cracks.
+            if ((hit == kRaySky && closed) || hit == kRayBack) continue;
             if (hit == kRaySky && !mR.mOptions.sky.empty()) {
                 sum += mR.mOptions.sky.radiance(scene.transform().baseMap()->applyJacobian(
                     rays(s))) * kPi;
@@ -303,6 +305,8 @@ struct Renderer::Tracer
             }
             ++used;
         }
+        // Every ray through a crack (a voxel between curved neighbours): its solved radiosity.
+        if (used == 0 && N > 0) return mR.mRadiosity.rgb(v);
         const Vec3d gathered = used > 0 ? sum / double(used) : Vec3d(0.0);
         const Vec3d rho(scene.albedo().rgb(v)), e(scene.emission().rgb(v));
         const Vec3d b = e + Vec3d(rho[0] * (direct[0] + gathered[0]),
@@ -356,7 +360,13 @@ struct Renderer::Tracer
         value = shade(p, Vec3f(n), -1);
         if (mR.mGather) {
             const int32_t v = nearestVoxel(p, Vec3f(n));
-            if (v >= 0 && mR.mOptions.gather > 0) value = gatherAt(p, size_t(v), rayHash(eye, dir));
+            // The gather's rays about the true surface's normal: the voxels' own normals
+            // would show each voxel of a curved surface as a facet.
+            const Vec3f smooth(n);
+            if (v >= 0 && mR.mOptions.gather > 0) {
+                value = gatherAt(p, size_t(v), rayHash(eye, dir),
+                    n.length() > 0.0 ? &smooth : nullptr);
+            }
             if (v >= 0 && mR.mGlossy) {
                 value += glossyAt(p, size_t(v), -ir.dir.unit(), rayHash(eye, dir));
             }
