@@ -263,6 +263,11 @@ struct Renderer::Tracer
             if (hit < kRayBack) {
                 gathered += mR.mGlossy->sent(hit, -world, g.reflected[hit])
                     * (brdf.value(l, wo) * l.z() / pdf);
+            } else if (hit == kRaySky && !mR.mOptions.sky.empty()) {
+                // The sky the file was solved under, pi L as everything here (radiosity).
+                gathered += mR.mOptions.sky.radiance(
+                    scene.transform().baseMap()->applyJacobian(world))
+                    * (kPi * brdf.value(l, wo) * l.z() / pdf);
             }
         }
         if (used > 0) sum += gathered / double(used);

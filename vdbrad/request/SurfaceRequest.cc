@@ -367,10 +367,6 @@ SurfaceSolve::read(const openvdb::GridPtrVec& grids,
             OPENVDB_THROW(openvdb::ValueError, "glossy surfaces need " + r.spell("update")
                 + " inplace or jacobi");
         }
-        if (!mOptions.sky.empty()) {
-            OPENVDB_THROW(openvdb::ValueError, "a sky on glossy surfaces (a `specular` grid) "
-                "is not solved yet");
-        }
     }
     if (findGrid(grids, names::kDensity)) {
         mWarnings.push_back("the fog ('density') is not part of this solve: "

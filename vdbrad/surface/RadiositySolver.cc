@@ -61,9 +61,6 @@ checkOptions(const Scene& scene, const RadiosityOptions& options, bool slab)
         OPENVDB_THROW(openvdb::ValueError, "direct-light samples must be >= 1, got "
             << options.directSamples);
     }
-    if (!options.sky.empty() && scene.isGlossy()) {
-        OPENVDB_THROW(openvdb::ValueError, "a sky on glossy surfaces is not solved yet");
-    }
     if (const auto& sun = options.sun) {
         if (options.direct == DirectMode::Sweep) {
             OPENVDB_THROW(openvdb::ValueError, "the sun's light is computed exactly: it does not "
@@ -549,6 +546,8 @@ RadiositySolver::saveState(SolverState& state) const
         state.put("glossy.share", impl.glossyShare);
         state.put("glossy.direct", reinterpret_cast<const float*>(impl.glossyDirect.data()),
             impl.glossyDirect.size() * 3);
+        state.put("glossy.sky", reinterpret_cast<const float*>(impl.glossySkyIn.data()),
+            impl.glossySkyIn.size() * 3);
     }
 }
 
@@ -616,6 +615,17 @@ RadiositySolver::restoreState(const SolverState& state)
         for (size_t e = 0; e < impl.glossyDirect.size(); ++e) {
             impl.glossyDirect[e] = openvdb::Vec3f(direct[3 * e], direct[3 * e + 1],
                 direct[3 * e + 2]);
+        }
+        // (A checkpoint written before the sky existed on glossy voxels has none: "glossy.sky"
+        // absent reads as empty, as for a solve without a sky.)
+        const std::vector<float> sky = state.has("glossy.sky") ? state.get<float>("glossy.sky")
+                                                               : std::vector<float>();
+        if (!sky.empty() && sky.size() != 3 * m) {
+            OPENVDB_THROW(openvdb::ValueError, "checkpoint's glossy sky light does not fit");
+        }
+        impl.glossySkyIn.resize(sky.size() / 3);
+        for (size_t e = 0; e < impl.glossySkyIn.size(); ++e) {
+            impl.glossySkyIn[e] = openvdb::Vec3f(sky[3 * e], sky[3 * e + 1], sky[3 * e + 2]);
         }
         impl.applyGlossyShares();
     }

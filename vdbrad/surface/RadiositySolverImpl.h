@@ -106,6 +106,11 @@ struct RadiositySolver::Impl
     std::unique_ptr<GlossySurfaces> glossy;
     std::array<std::vector<uint32_t>, SweepSchedule::kPatterns> glossyAt;
     std::vector<std::vector<double>> glossyHits;
+    // Under a sky, the first iteration's splat of the sky cells their directions miss to
+    // (per group), then its sum per glossy voxel and point (kept for checkpoints): a constant
+    // source of their lobes, as skyIn is of the diffuse parts.
+    std::vector<std::vector<openvdb::Vec3d>> glossySky;
+    std::vector<openvdb::Vec3f> glossySkyIn;
     std::vector<double> glossyShare;
     std::vector<openvdb::Vec3f> glossyDirect;
     // A pattern's directions (both senses) splat on a few of the points only (two opposite

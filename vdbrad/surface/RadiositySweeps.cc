@@ -128,6 +128,7 @@ struct RadiositySolver::Engine
         const ValueT* spec = nullptr;
         AccT* incident = nullptr;
         double* hits = nullptr;
+        openvdb::Vec3d* sky = nullptr;   // first iteration, under a sky: what misses brings
         size_t points = 0;
         size_t slots = 0;
     };
@@ -192,6 +193,22 @@ struct RadiositySolver::Engine
                 }
             } else if constexpr (Hits) {
                 skyMiss(impl, S, x, k, sigmaDotN, c);
+                if constexpr (Glossy != kDiffuse) {
+                    // A glossy voxel's lobe takes the sky's cell on the direction's points.
+                    const uint32_t gx = lanes.at[x];
+                    if (lanes.sky && gx != GlossySurfaces::kNone && sigmaDotN != 0.f) {
+                        const openvdb::Vec3d L(impl.skyCells[2 * k + (sigmaDotN > 0.f ? 0 : 1)]);
+                        const double w = double(std::abs(sigmaDotN) * c);
+                        openvdb::Vec3d* I = lanes.sky + size_t(gx) * lanes.slots;
+                        if constexpr (Glossy == kPoints) {
+                            const ControlPoints::Weights& u = slotToward[sigmaDotN > 0.f ? 0 : 1];
+                            for (int j = 0; j < 3; ++j) I[u.index[j]] += L * (w * u.weight[j]);
+                        } else {
+                            const float* y = harmonic[sigmaDotN > 0.f ? 0 : 1];
+                            for (size_t j = 0; j < lanes.slots; ++j) I[j] += L * (w * y[j]);
+                        }
+                    }
+                }
             }
         };
         if (impl.rays) {
@@ -403,6 +420,11 @@ struct RadiositySolver::Engine
             if (H) {
                 impl.glossyHits[size_t(g)].assign(glossy->size() * slots, 0.0);
                 lanes.hits = impl.glossyHits[size_t(g)].data();
+                if (!impl.skyCells.empty()) {
+                    impl.glossySky[size_t(g)].assign(glossy->size() * slots,
+                        openvdb::Vec3d(0.0));
+                    lanes.sky = impl.glossySky[size_t(g)].data();
+                }
             }
         }
         if (H) H->assign(n, Scalar(0));
@@ -470,6 +492,22 @@ struct RadiositySolver::Engine
                 });
             impl.applyGlossyShares();
             impl.glossyHits.clear();
+            if (!impl.glossySky.empty()) {
+                // The sky on the lobes, summed over the groups in their order.
+                impl.glossySkyIn.assign(glossy->size() * P, openvdb::Vec3f(0.f));
+                tbb::parallel_for(tbb::blocked_range<size_t>(0, glossy->size()),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                        std::vector<openvdb::Vec3d> I(P);
+                        for (size_t k = r.begin(); k != r.end(); ++k) {
+                            std::fill(I.begin(), I.end(), openvdb::Vec3d(0.0));
+                            sumSlots(impl, impl.glossySky, k, I.data());
+                            for (size_t o = 0; o < P; ++o) {
+                                impl.glossySkyIn[k * P + o] = openvdb::Vec3f(I[o]);
+                            }
+                        }
+                    });
+                impl.glossySky.clear();
+            }
         }
         impl.hitsKnown = true;
     }
@@ -497,6 +535,11 @@ struct RadiositySolver::Engine
                         for (size_t o = 0; o < P; ++o) {
                             I[o] += channelsOf<WideT>(
                                 openvdb::Vec3d(impl.glossyDirect[k * P + o]) * z);
+                        }
+                    }
+                    if (!impl.glossySkyIn.empty()) {
+                        for (size_t o = 0; o < P; ++o) {
+                            I[o] += channelsOf<WideT>(openvdb::Vec3d(impl.glossySkyIn[k * P + o]));
                         }
                     }
                     // Reflected in the state's own precision (the sums above are wide): float
@@ -549,6 +592,7 @@ struct RadiositySolver::Engine
         if (glossy) {
             st.incident.resize(size_t(kGroups));
             if (measureHits) impl.glossyHits.assign(size_t(kGroups), {});
+            if (measureHits && lit) impl.glossySky.assign(size_t(kGroups), {});
         }
 
         for (int phase = 0; phase < phases; ++phase) {
@@ -590,6 +634,7 @@ struct RadiositySolver::Engine
                             ranks.share(st.incident[size_t(g)], count, owner);
                             if (measureHits) {
                                 ranks.share(impl.glossyHits[size_t(g)], count, owner);
+                                if (lit) ranks.share(impl.glossySky[size_t(g)], count, owner);
                             }
                         }
                     });
