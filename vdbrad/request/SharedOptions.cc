@@ -136,8 +136,8 @@ sky()
     return {
         {"sky", OptionType::String, "", "0.3",
             "a uniform sky of this radiance (grey, or linear r,g,b): what a voxel facing the "
-            "outside receives from each direction in which it sees no voxel (diffuse scenes), "
-            "what enters a cloud's box from each direction"},
+            "outside receives from each direction in which it sees no voxel, what enters a "
+            "cloud's box from each direction"},
         OptionSpec{"sky-model", OptionType::String, "uniform", "clear",
             "uniform: --sky's radiance; clear: Preetham's clear sky for the --sun's position "
             "(the paper's luminance in kcd/m^2 as radiance, so a clear day's sun is about "
