@@ -506,10 +506,13 @@ TEST_F(CliTest, DistributedSolvesGiveTheSerialBits)
     const Result stopped = sh("rm -f ck part.vdb; " + mpirun + "2" + tool + "solve big.vdb "
         "part.vdb --directions 1000 --visibility-cache 0 --iterations 100000 --tolerance 0 --checkpoint ck --checkpoint-every 3 "
         "--quiet & job=$!; for i in $(seq 600); do [ -e ck ] && break; sleep 0.05; done; "
+        "for i in $(seq 600); do kill -0 $job 2>/dev/null || break; "
         "for p in $(pgrep -f 'solve big.vdb part.vdb'); do tr '\\0' '\\n' < /proc/$p/environ "
-        "2>/dev/null | grep -q '^OMPI_COMM_WORLD_RANK=' && kill -TERM $p; done; wait $job; "
-        "echo \"status $?\"");
-    // (The ranks: the processes with a rank in their environment, not this shell.)
+        "2>/dev/null | grep -q '^OMPI_COMM_WORLD_RANK=' && kill -TERM $p; done; sleep 0.1; done; "
+        "wait $job; echo \"status $?\"");
+    // (The ranks: the processes with a rank in their environment, not this shell; signalled
+    // again until the job has ended: under load this test once hung to its timeout, and one
+    // missed SIGTERM leaves the job running its 100000 iterations.)
     EXPECT_NE(stopped.out.find("status "), std::string::npos) << stopped.out << stopped.err;
     EXPECT_EQ(stopped.out.find("status 0"), std::string::npos) << stopped.out << stopped.err;
     EXPECT_FALSE(exists(path("part.vdb")));

@@ -6,7 +6,7 @@
 #include "vdbrad/glossy/ControlPoints.h"
 #include "vdbrad/glossy/GlossySurfaces.h"
 #include "vdbrad/mesh/MeshTracer.h"
-#include "vdbrad/render/GlossyLamps.h"
+#include "vdbrad/render/FinalGather.h"
 #include "vdbrad/scene/Emitters.h"
 #include "vdbrad/surface/DirectLight.h"
 #include "vdbrad/surface/SurfaceRays.h"
@@ -159,41 +159,6 @@ struct Renderer::MeshShared
     MeshTracer tracer;
 };
 
-struct Renderer::Gather
-{
-    Gather(const Scene& scene, const Attribute& radiosity, const RenderOptions& options)
-        : emitters(scene)
-        , regions(findRegions(scene.voxels(), scene.normals(), LineType::Naive))
-        , sampler(scene, emitters, directOptions(options),
-              regions.cavities > 0 ? &regions.region : nullptr)
-        , box(scene.voxels().bbox())
-    {
-        reflected.resize(scene.size());
-        for (size_t i = 0; i < scene.size(); ++i) {
-            reflected[i] = Vec3d(radiosity.rgb(i)) - Vec3d(scene.emission().rgb(i));
-        }
-    }
-    static DirectLightOptions directOptions(const RenderOptions& options)
-    {
-        DirectLightOptions d;
-        d.samples = options.directSamples;
-        d.sun = options.sun;
-        return d;
-    }
-    Emitters emitters;
-    Regions regions;
-    DirectLightSampler sampler;
-    openvdb::CoordBBox box;
-    std::vector<Vec3d> reflected;
-};
-
-
-// The lobes and the lamps' light through them (GlossyLamps.h).
-struct Renderer::Glossy : GlossyLamps
-{
-    using GlossyLamps::GlossyLamps;
-};
-
 struct Renderer::Tracer
 {
     explicit Tracer(const Renderer& r)
@@ -213,110 +178,16 @@ struct Renderer::Tracer
             mCloud.emplace(r.mCloud.voxels().tree());
         }
         if (r.mGround) mGround.emplace(r.mGround->getConstAccessor());
-        if (r.mGather) mDirect.emplace(r.mGather->sampler);
-        if (r.mGather && r.mGlossy) mLobeDirect.emplace(r.mGather->sampler);
+        if (r.mGather) mGather.emplace(*r.mGather);
     }
 
-    // What glossy voxel v's lobe reflects towards the eye (index-space unit @a toEye) at the
-    // index-space point p: ks (lamps through the lobe + the lobe's gather), the sample sequences
-    // hashed from @a h. Zero for a diffuse voxel or one seen from behind.
+    Vec3f gatherAt(const Vec3d& p, size_t v, uint64_t h, const Vec3f* smooth)
+    {
+        return mR.mGather->gather(p, v, h, smooth, mR.mRadiosity.rgb(v), *mGather);
+    }
     Vec3f glossyAt(const Vec3d& p, size_t v, const Vec3d& toEye, uint64_t h)
     {
-        const Scene& scene = mR.mScene;
-        const Vec3f ks = scene.specular().rgb(v);
-        if (ks == Vec3f(0.f)) return Vec3f(0.f);
-        const Gather& g = *mR.mGather;
-        const SurfacePlanes& planes = g.sampler.planes();
-        const Vec3d n(scene.normal(v));
-        const openvdb::math::Mat3d R = ControlPoints::frame(n);
-        auto local = [&](const Vec3d& w) { return w * R; };   // R^T w
-        const Vec3d wo = local(toEye);
-        if (wo.z() <= 0.0) return Vec3f(0.f);
-        const Brdf& brdf = mR.mGlossy->lobe(scene.roughness().grey(v));
-        const Vec3d c = scene.voxels().coord(v).asVec3d();
-        Vec3d q = p - n * (p - planes.point(v)).dot(n);
-        for (int k = 0; k < 3; ++k) q[k] = std::clamp(q[k], c[k] - 0.5, c[k] + 0.5);
-        // The lamps: pi lobe(l, wo) times the irradiance arriving from l.
-        std::vector<std::pair<Vec3d, Vec3d>> incident;
-        mLobeDirect->incident = &incident;
-        g.sampler.at(q, n, v, mixHash(h + 11), *mLobeDirect);
-        Vec3d sum(0.0);
-        for (const auto& [l, e] : incident) sum += e * (kPi * brdf.value(local(l), wo));
-        // The rest: directions drawn from the lobe, each worth lobe cos / pdf of what it hits.
-        const size_t N = size_t(mR.mOptions.glossyRays);
-        const bool closed = g.regions.region.empty() ? false : g.regions.region[v] != 0;
-        const Vec3d origin = planes.rayOrigin(v, q);
-        Vec3d gathered(0.0);
-        size_t used = 0;
-        const double phase = unitHash(mixHash(h + 12));
-        for (size_t s = 0; s < N; ++s) {
-            const double u1 = (double(s) + unitHash(mixHash(h + 13 + 2 * s))) / double(N);
-            const double u2 = std::fmod(phase + 0.6180339887498949 * double(s), 1.0);
-            double pdf = 0.0;
-            const Vec3d l = brdf.sample(wo, u1, u2, pdf);
-            ++used;
-            if (l.z() <= 0.0 || !(pdf > 0.0)) continue;
-            const Vec3d world = R * l;
-            const uint32_t hit = traceSurface(scene, planes, *mSurface, g.box, uint32_t(v),
-                origin, world);
-            if (hit == kRaySky && closed) { --used; continue; }   // a digitisation crack
-            if (hit < kRayBack) {
-                gathered += mR.mGlossy->sent(hit, -world, g.reflected[hit])
-                    * (brdf.value(l, wo) * l.z() / pdf);
-            } else if (hit == kRaySky && !mR.mOptions.sky.empty()) {
-                // The sky the file was solved under, pi L as everything here (radiosity).
-                gathered += mR.mOptions.sky.radiance(
-                    scene.transform().baseMap()->applyJacobian(world))
-                    * (kPi * brdf.value(l, wo) * l.z() / pdf);
-            }
-        }
-        if (used > 0) sum += gathered / double(used);
-        return Vec3f(float(ks[0] * sum[0]), float(ks[1] * sum[1]), float(ks[2] * sum[2]));
-    }
-
-    // The final gather at index-space point p seen on voxel v (RenderOptions::gather): the
-    // point moved onto v's plane (SurfacePlanes.h; inside its cube), E + rho (D + mean reflected
-    // radiosity of what cosine rays from half a voxel above it hit), the rays about @a smooth
-    // (a mesh's or level set's normal there) or v's normal, the sample sequences hashed from
-    // @a h.
-    Vec3f gatherAt(const Vec3d& p, size_t v, uint64_t h, const Vec3f* smooth = nullptr)
-    {
-        const Scene& scene = mR.mScene;
-        const Gather& g = *mR.mGather;
-        const SurfacePlanes& planes = g.sampler.planes();
-        const Vec3d c = scene.voxels().coord(v).asVec3d();
-        const Vec3d n(scene.normal(v));
-        Vec3d q = p - n * (p - planes.point(v)).dot(n);
-        for (int k = 0; k < 3; ++k) q[k] = std::clamp(q[k], c[k] - 0.5, c[k] + 0.5);
-        const Vec3d direct = g.sampler.at(q, n, v, mixHash(h), *mDirect);
-        const size_t N = size_t(mR.mOptions.gather);
-        const CosineRays rays(smooth ? *smooth : scene.normal(v), mixHash(h + 1), N);
-        const bool closed = g.regions.region.empty() ? false : g.regions.region[v] != 0;
-        const Vec3d origin = planes.rayOrigin(v, q);   // as shadow rays
-        Vec3d sum(0.0);
-        size_t used = 0;
-        for (size_t s = 0; s < N; ++s) {
-            const uint32_t hit = traceSurface(scene, planes, *mSurface, g.box, uint32_t(v), origin,
-                rays(s));
-            // A closed room's voxel leaving through its own cube, or a ray from a curved
-            // surface's voxel meeting the back of its neighbour: digitisation cracks.
-            if ((hit == kRaySky && closed) || hit == kRayBack) continue;
-            if (hit == kRaySky && !mR.mOptions.sky.empty()) {
-                sum += mR.mOptions.sky.radiance(scene.transform().baseMap()->applyJacobian(
-                    rays(s))) * kPi;
-            } else if (hit < kRayBack) {
-                sum += mR.mGlossy ? mR.mGlossy->sent(hit, -rays(s), g.reflected[hit])
-                                  : g.reflected[hit];
-            }
-            ++used;
-        }
-        // Every ray through a crack (a voxel between curved neighbours): its solved radiosity.
-        if (used == 0 && N > 0) return mR.mRadiosity.rgb(v);
-        const Vec3d gathered = used > 0 ? sum / double(used) : Vec3d(0.0);
-        const Vec3d rho(scene.albedo().rgb(v)), e(scene.emission().rgb(v));
-        const Vec3d b = e + Vec3d(rho[0] * (direct[0] + gathered[0]),
-            rho[1] * (direct[1] + gathered[1]), rho[2] * (direct[2] + gathered[2]));
-        return Vec3f(b);
+        return mR.mGather->glossy(p, v, toEye, h, *mGather);
     }
 
     // First surface hit along the world ray (eye, unit dir) within [t0, t1]: its world distance
@@ -357,9 +228,9 @@ struct Renderer::Tracer
                 });
             if (hit < 0) return false;
             p = ir.origin + ir.dir * tHit;
-            value = mR.mOptions.gather > 0 ? gatherAt(p, size_t(hit), rayHash(eye, dir))
+            value = mR.mOptions.gather > 0 ? gatherAt(p, size_t(hit), rayHash(eye, dir), nullptr)
                                            : shade(p, scene.normal(size_t(hit)), hit);
-            if (mR.mGlossy) value += glossyAt(p, size_t(hit), -ir.dir.unit(), rayHash(eye, dir));
+            if (mGather) value += glossyAt(p, size_t(hit), -ir.dir.unit(), rayHash(eye, dir));
             return true;
         }
         value = shade(p, Vec3f(n), -1);
@@ -372,7 +243,7 @@ struct Renderer::Tracer
                 value = gatherAt(p, size_t(v), rayHash(eye, dir),
                     n.length() > 0.0 ? &smooth : nullptr);
             }
-            if (v >= 0 && mR.mGlossy) {
+            if (v >= 0) {
                 value += glossyAt(p, size_t(v), -ir.dir.unit(), rayHash(eye, dir));
             }
         }
@@ -503,8 +374,7 @@ struct Renderer::Tracer
     std::optional<Accessor> mSurface, mCloud;
     std::optional<openvdb::FloatGrid::ConstAccessor> mGround;
     std::optional<MeshTracer::Accessor> mMesh;
-    std::optional<DirectLightSampler::Workspace> mDirect;   // the final gather's
-    std::optional<DirectLightSampler::Workspace> mLobeDirect;   // the glossy lobes' lamps
+    std::optional<FinalGather::Workspace> mGather;
     std::optional<LevelSetIntersector> mLevelSet;
     std::optional<openvdb::math::BoxStencil<openvdb::FloatGrid>> mStencil;
 };
@@ -600,7 +470,7 @@ Renderer::setSurface(const openvdb::GridPtrVec& grids, const GridRoles& roles,
     const openvdb::GridBase::ConstPtr specular = findGrid(grids, names::kSpecularRadiosity);
     const bool glossy = specular && mScene.isGlossy() && mOptions.glossyRays > 0;
     // The gather reads the total radiosity (its `reflected`): made before the lobes leave.
-    if (mOptions.gather > 0 || glossy) mGather.reset(new Gather(mScene, mRadiosity, mOptions));
+    if (mOptions.gather > 0 || glossy) mGather.reset(new FinalGather(mScene, mRadiosity, mOptions));
     if (glossy) {
         if (specular->transform() != mScene.transform()) {
             OPENVDB_THROW(openvdb::ValueError, "the specular_radiosity grid is not on the "
@@ -610,8 +480,7 @@ Renderer::setSurface(const openvdb::GridPtrVec& grids, const GridRoles& roles,
             names::kSpecularRadiosity, 0.f);
         const openvdb::Metadata::ConstPtr model = radiosity->getMetadata<openvdb::StringMetadata>(
             meta::kBrdf);
-        mGlossy.reset(new Glossy(mScene, mGather->sampler,
-            model ? brdfModelFromName(model->str()) : BrdfModel::Phong));
+        mGather->addLobes(model ? brdfModelFromName(model->str()) : BrdfModel::Phong);
         std::vector<Vec3f> diffuse(mScene.size());
         for (size_t i = 0; i < diffuse.size(); ++i) {
             diffuse[i] = mRadiosity.rgb(i) - lobes.rgb(i);

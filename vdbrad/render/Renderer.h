@@ -45,6 +45,8 @@
 
 namespace vdbrad {
 
+class FinalGather;
+
 /// A pinhole camera in world space.
 struct Camera
 {
@@ -188,14 +190,10 @@ private:
 
     bool mHasSurface = false, mHasCloud = false;
     Scene mScene;
-    // Final gather (RenderOptions::gather): emitters, rooms, the direct-light sampler and the
-    // reflected radiosity B - E per voxel.
-    struct Gather;
-    std::unique_ptr<Gather> mGather;
+    // Final gather and glossy lobes (RenderOptions::gather, glossyRays; FinalGather.h).
+    std::unique_ptr<FinalGather> mGather;
     Attribute mRadiosity;                    // per surface voxel, scene numbering (glossy
                                              // scenes with glossyRays: the diffuse part)
-    struct Glossy;                           // lobes and lamps (GlossyLamps; glossyRays > 0)
-    std::unique_ptr<Glossy> mGlossy;
     openvdb::FloatGrid::Ptr mLevelSet;       // level-set scenes only (a shallow copy)
     std::unique_ptr<LevelSetShared> mLevelSetShared;
     std::unique_ptr<MeshShared> mMesh;
