@@ -18,8 +18,10 @@
 
 #include <tbb/global_control.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <tuple>
 
 using namespace vdbrad;
@@ -799,56 +801,59 @@ TEST_F(CloudTest, StepCloudSweptInItsPlaneAgreesWithMonteCarlo)
 }
 
 // Issue 24: a periodic box one voxel deep along both horizontal axes is a plane-parallel slab,
-// swept along the vertical alone (discrete ordinates on the direction set). The issue's slab
-// criterion: HG g = 0.848, conservative, tau 0.5 to 100, at default settings (phase order 10
-// and 2000 directions chosen from g, harmonic weights, linear source, Anderson chosen from the
-// medium) on 80 layers, against adding-doubling: within 0.1 %. Measured -0.008 / -0.042 /
-// -0.053 / -0.037 / -0.000 / +0.023 % at tau 0.5 / 2 / 5 / 10 / 50 / 100 (at order 8, -0.11 %
-// at tau 5); the test runs the thinnest, the worst and the thickest.
+// swept along the vertical alone (discrete ordinates on the direction set). Issue 24's slab
+// criterion: HG g = 0.848, conservative, tau 0.5 to 100, on 80 layers, against adding-doubling:
+// within 0.1 % at its defaults (phase order 10, 2000 directions, harmonic weights, linear
+// source, Anderson chosen from the medium); measured -0.008 / -0.042 / -0.053 / -0.037 /
+// -0.000 / +0.023 % at tau 0.5 / 2 / 5 / 10 / 50 / 100; the test runs the thinnest, the worst
+// and the thickest. Issue 46's, at today's defaults (order 8, 967 directions): a forward peak
+// of g 0.877 within 0.3 % at tau 10 and 100 (measured -0.14 / +0.00 %).
 TEST_F(CloudTest, OneVoxelWideBoxIsThePlaneParallelSlab)
 {
-    for (double tau : {0.5, 5.0, 100.0}) {
+    struct Case { double g, tau; int order, directions; double tolerance; };
+    for (const Case c : {Case{0.848, 0.5, 10, 2000, 0.001}, Case{0.848, 5.0, 10, 2000, 0.001},
+             Case{0.848, 100.0, 10, 2000, 0.001}, Case{0.877, 10.0, -1, 0, 0.003},
+             Case{0.877, 100.0, -1, 0, 0.003}}) {
         CloudTransferOptions o;
         o.periodic = true;
-        o.phase = PhaseFunction::henyeyGreenstein(0.848);
-        CloudTransfer transfer(slab(1, 80, 1, tau, 1.f), o);
+        o.phase = PhaseFunction::henyeyGreenstein(c.g);
+        o.phaseOrder = c.order;
+        o.directions = c.directions;
+        CloudTransfer transfer(slab(1, 80, 1, c.tau, 1.f), o);
         const std::string said = transfer.describe();
         EXPECT_NE(said.find("deep along x z"), std::string::npos) << said;
-        EXPECT_NE(said.find("phase order 10"), std::string::npos) << said;
-        EXPECT_EQ(transfer.directions().size(), DirectionSet::fromCount(2000).size());
+        EXPECT_NE(said.find(c.order < 0 ? "phase order 8" : "phase order 10"), std::string::npos)
+            << said;
+        EXPECT_EQ(transfer.directions().size(),
+            DirectionSet::fromCount(c.order < 0 ? 1000 : 2000).size());
         transfer.solve();
-        ASSERT_TRUE(transfer.converged()) << tau;
+        ASSERT_TRUE(transfer.converged()) << c.tau;
         test::SlabProblem problem;
-        problem.tau = tau;
-        problem.g = 0.848;
+        problem.tau = c.tau;
+        problem.g = c.g;
         const double exact = test::addingDoublingSlab(problem).reflectance;
-        std::printf("plane-parallel tau %g: albedo %.5f, exact %.5f (%+.3f %%), %d sweeps\n", tau,
-            transfer.budget().albedo, exact, 100.0 * (transfer.budget().albedo / exact - 1.0),
-            transfer.iterationCount());
-        EXPECT_NEAR(transfer.budget().albedo, exact, 0.001 * exact) << tau;
-        EXPECT_NEAR(transfer.budget().balance(), 0.0, 1e-4) << tau;
+        std::printf("plane-parallel g %g tau %g: albedo %.5f, exact %.5f (%+.3f %%), %d sweeps\n",
+            c.g, c.tau, transfer.budget().albedo, exact,
+            100.0 * (transfer.budget().albedo / exact - 1.0), transfer.iterationCount());
+        EXPECT_NEAR(transfer.budget().albedo, exact, c.tolerance * exact) << c.g << " " << c.tau;
+        EXPECT_NEAR(transfer.budget().balance(), 0.0, 1e-4) << c.tau;
     }
 }
 
-// Issue 24, defaults chosen from the phase function and the medium: the phase order leaves at
-// most 17 % to delta-M, the directions grow with its square, acceleration where plain sweeps
-// would be slow.
+// Issues 24 and 46, defaults chosen from the phase function and the medium: phase order 8 for
+// any anisotropic phase (delta-M beyond), 1000 directions for a peak (|g| > 0.5), acceleration
+// where plain sweeps would be slow.
 TEST_F(CloudTest, DefaultsFollowThePhaseFunctionAndTheMedium)
 {
     CloudTransferOptions o;
     EXPECT_EQ(CloudTransfer::phaseOrderFor(o), 0);
     EXPECT_EQ(CloudTransfer::directionCount(o), 300);
     for (auto [g, order, directions] : {std::tuple<double, int, int>{0.3, 8, 300},
-             {0.6, 8, 1280}, {0.8, 8, 1280}, {0.85, 10, 2000}, {0.9, 16, 5120},
-             {-0.95, 16, 5120}}) {
+             {0.5, 8, 300}, {0.6, 8, 1000}, {0.85, 8, 1000}, {0.877, 8, 1000},
+             {-0.95, 8, 1000}}) {
         o.phase = PhaseFunction::henyeyGreenstein(g);
         EXPECT_EQ(CloudTransfer::phaseOrderFor(o), order) << g;
         EXPECT_EQ(CloudTransfer::directionCount(o), directions) << g;
-        // The order is the smallest >= 8 leaving at most 0.17 (or 16).
-        if (order > 8 && order < 16) {
-            EXPECT_LE(std::pow(std::abs(g), order + 1), 0.17) << g;
-            EXPECT_GT(std::pow(std::abs(g), order), 0.17) << g;
-        }
     }
     o.phaseOrder = 4;
     o.directions = 50;
@@ -1025,13 +1030,14 @@ TEST_F(CloudTest, StepCloudOverAGroundAgreesWithMonteCarlo)
         0.005 * mc.transmittance + 3 * mc.transmittanceStderr);
     EXPECT_NEAR(b.balance(), 0.0, 1e-4);
     // The ground's cells hold its irradiance: their mean is the transmittance times F0 mu0, but
-    // for what the periodic matching lets leave the box where no line re-enters (0.03 %) and
-    // the last sweep's against the mixed iterate's.
+    // for what the periodic matching lets leave the box where no line re-enters and the last
+    // sweep's against the mixed iterate's (0.03 % at order 10 and 2013 directions, 0.05 % at
+    // the defaults since issue 46, order 8 and 967).
     const std::vector<float> E = transfer.groundIrradiance();
     ASSERT_EQ(E.size(), size_t(params.res));
     double mean = 0.0;
     for (float e : E) mean += double(e) / double(E.size());
-    EXPECT_NEAR(mean, 0.5 * b.transmittance, 5e-4 * mean);
+    EXPECT_NEAR(mean, 0.5 * b.transmittance, 1e-3 * mean);
 }
 
 // A checkpoint of a solve over a ground holds the ground's light and budget: restored, the
@@ -1321,4 +1327,59 @@ TEST_F(CloudTest, ConstantMapIsTheUniformSky)
     const std::vector<float> a = uniform.meanIntensity(), b = map.meanIntensity();
     ASSERT_EQ(a.size(), b.size());
     for (size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(b[i], a[i], 1e-6 * a[i]) << i;
+}
+
+// Issue 46: the defaults must not depend on how a file happens to be written. The step cloud
+// written four voxels deep along its uniform axis (z), over a ground, is solved as the one-deep
+// cloud (uniformSlice): its mean radiance is the one-deep solve's, every layer, to the bit, and
+// so is the ground's irradiance; a cloud that varies along an axis is not sliced along it.
+TEST_F(CloudTest, PeriodicBoxesUniformAlongAnAxisAreSolvedOneVoxelDeep)
+{
+    grids::BuildParams params;
+    params.res = 32;
+    params.albedo = 1.f;
+    const Cloud thin = buildCloud(grids::makeStepCloud(params));
+    ASSERT_EQ(thin.voxels().bbox().dim().z(), 1);
+    const Cloud deep = tileCloud(thin, openvdb::Coord(1, 1, 4));
+    EXPECT_EQ(uniformAxes(deep, 1), (std::array<bool, 3>{false, false, true}));
+    EXPECT_EQ(uniformAxes(thin, 1), (std::array<bool, 3>{}));   // one deep: nothing to slice
+    CloudTransferOptions o;
+    o.periodic = true;
+    o.phase = PhaseFunction::henyeyGreenstein(0.85);
+    o.phaseOrder = 4;
+    o.directions = 100;
+    o.sunZenith = 60.0;
+    o.groundAlbedo = 0.4;
+    o.maxIterations = 8;
+    o.tolerance = 0.0;
+    const std::unique_ptr<Cloud> slice = uniformSlice(deep, o);
+    ASSERT_TRUE(slice);
+    EXPECT_EQ(slice->size(), thin.size());
+    openvdb::FloatGrid::Ptr groundThin, groundDeep;
+    const auto Jthin = openvdb::gridPtrCast<openvdb::FloatGrid>(
+        solveCloud(thin, o, nullptr, SolveControl(), &groundThin));
+    const auto Jdeep = openvdb::gridPtrCast<openvdb::FloatGrid>(
+        solveCloud(deep, o, nullptr, SolveControl(), &groundDeep));
+    ASSERT_TRUE(Jthin && Jdeep && groundThin && groundDeep);
+    EXPECT_EQ(Jdeep->activeVoxelCount(), deep.size());
+    EXPECT_EQ(groundDeep->activeVoxelCount(), 4 * groundThin->activeVoxelCount());
+    EXPECT_EQ(Jdeep->metaValue<int32_t>("vdbrad:iterations"), 8);
+    auto thinAcc = Jthin->getConstAccessor(), groundAcc = groundThin->getConstAccessor();
+    size_t checked = 0;
+    for (auto it = Jdeep->cbeginValueOn(); it; ++it, ++checked) {
+        openvdb::Coord c = it.getCoord();
+        c.z() = thin.voxels().bbox().min().z();
+        ASSERT_EQ(*it, thinAcc.getValue(c)) << it.getCoord();
+    }
+    EXPECT_EQ(checked, deep.size());
+    for (auto it = groundDeep->cbeginValueOn(); it; ++it) {
+        openvdb::Coord c = it.getCoord();
+        c.z() = thin.voxels().bbox().min().z();
+        ASSERT_EQ(*it, groundAcc.getValue(c)) << it.getCoord();
+    }
+    // A cumulus varies along both horizontal axes; an open box is never sliced.
+    const Cloud cumulus = buildCloud(grids::makeCumulus(params));
+    EXPECT_EQ(uniformAxes(cumulus, 1), (std::array<bool, 3>{}));
+    o.periodic = false;
+    EXPECT_FALSE(uniformSlice(deep, o));
 }

@@ -209,7 +209,8 @@ TEST_F(IterationTest, OneCallSolvesMatchTheClasses)
 
     grids::BuildParams p;
     p.res = 8;
-    const Cloud cloud = buildCloud(grids::findBuilder("slab")->build(p));
+    // (A cumulus: a slab, uniform sideways, solveCloud would solve one voxel deep.)
+    const Cloud cloud = buildCloud(grids::findBuilder("cumulus")->build(p));
     CloudTransferOptions co;
     co.directions = 30;
     co.periodic = true;

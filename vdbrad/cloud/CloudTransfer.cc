@@ -86,7 +86,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     impl.layOut(cloud, options, std::move(directions));
     // The moments, the light carried across periodic side faces and the ground's (see
     // iterate()).
-    impl.mixer = mIteration.makeMixer<float>(impl.n * size_t(impl.M) + impl.leftFace.size()
+    impl.mixer = mIteration.makeMixer<float>(impl.n * impl.mixedMoments() + impl.leftFace.size()
         + impl.groundDiffuse.size() + impl.surfaceLanded.size());
     impl.setEscapeFactors(options.up);
     mIteration.addSeconds(
@@ -362,9 +362,7 @@ CloudTransfer::phaseOrderFor(const CloudTransferOptions& options)
 {
     if (options.phase.isIsotropic()) return 0;
     if (options.phaseOrder >= 0) return options.phaseOrder;
-    int order = 8;
-    while (order < 16 && std::abs(options.phase.chi(order + 1)) > 0.17) ++order;
-    return order;
+    return 8;
 }
 
 int
@@ -372,8 +370,7 @@ CloudTransfer::directionCount(const CloudTransferOptions& options)
 {
     if (options.directions != 0) return options.directions;
     if (options.phase.isIsotropic() || std::abs(options.phase.asymmetry()) <= 0.5) return 300;
-    const double k = phaseOrderFor(options) / 10.0;
-    return int(std::lround(2000.0 * k * k));
+    return 1000;
 }
 
 Acceleration
@@ -464,7 +461,8 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     perVoxel += t * (4 + 16 + 8);                   // per thread: slots, line state, 1 - e^-tau
     if (M > 1) perVoxel += t * 2 * 2 * 4 * Impl::batchSize(n, M);   // a batch's two matrices
     if (anderson) {
-        perVoxel += 8 * M + AndersonMixer::bytes(M, options.andersonDepth);   // + x, G(x)
+        const size_t mixed = Impl::mixedMoments(int(M));
+        perVoxel += 8 * mixed + AndersonMixer::bytes(mixed, options.andersonDepth);   // + x, G(x)
     }
     // The copies of a narrow periodic box, or the ground's layer added: coordinates,
     // extinction, the voxel copied, index.

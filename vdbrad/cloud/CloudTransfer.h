@@ -64,6 +64,8 @@
 // other axes, with the 3D path per step (sweptLine(), VoxelStep.h) — exact along that axis, without
 // copies, and what wraps crosses the other axis' faces only. One voxel deep along both horizontal
 // axes is a plane-parallel medium, swept along the vertical alone: the discrete-ordinates slab.
+// solveCloud() slices a periodic box uniform along a horizontal axis to one voxel deep first
+// (uniformSlice()), so that how many layers a file has along it changes nothing.
 //
 // Ground (CloudTransferOptions::groundAlbedo, Ground.h): a Lambertian surface under the box, a
 // layer of voxels swept with the medium: light going down lands on the ground cell it meets and
@@ -117,8 +119,7 @@ struct CloudTransferOptions
 {
     /// Direction pairs swept per iteration (DirectionSet::fromCount: the nearest count); 0
     /// (auto): for a phase function of asymmetry |g| > 0.5, whose peak must be carried from
-    /// voxel to voxel, 2000 (K / 10)^2 at phase order K, else 300
-    /// (CloudTransfer::directionCount()).
+    /// voxel to voxel, 1000, else 300 (CloudTransfer::directionCount()).
     int directions = 0;
     /// Source-iteration cap, >= 1.
     int maxIterations = 1000;
@@ -154,16 +155,14 @@ struct CloudTransferOptions
     PhaseFunction phase;
     /// Spherical-harmonic order K of the radiance moments kept for an anisotropic phase, with
     /// delta-M scaling beyond it: (K + 1)^2 numbers per voxel and per accumulator group. -1
-    /// (auto): the smallest K >= 8 whose truncated fraction |chi_{K+1}| is at most 0.17, at
-    /// most 16 (CloudTransfer::phaseOrderFor(): 8 for HG g <= 0.82, 10 for g = 0.85, 16 for
-    /// 0.9).
+    /// (auto): 8 (CloudTransfer::phaseOrderFor()).
     int phaseOrder = -1;
     /// Anderson acceleration (Acceleration.h) of the source iteration, over the radiance
-    /// moments (n x (K + 1)^2 numbers) and the light a periodic box carries over to the next
-    /// iteration across its side faces. Unset (auto): Anderson where plain sweeps would be slow
+    /// moments of order l <= 1 (n x 4 numbers; the plain step carries the higher ones) and
+    /// the light a periodic box carries over to the next iteration across its side faces. Unset (auto): Anderson where plain sweeps would be slow
     /// (CloudTransfer::chooseAcceleration()).
     std::optional<Acceleration> accelerate;
-    /// Anderson history length m: 2m + 2 copies of the moments are kept.
+    /// Anderson history length m: 2m + 2 copies of the mixed state are kept.
     int andersonDepth = 16;
     /// The source's shape inside a voxel along each step.
     VoxelSource source = VoxelSource::Linear;
@@ -245,21 +244,23 @@ public:
     const openvdb::Coord& copies() const { return mCopies; }
     /// @brief The copies a transfer of @a cloud with @a options solves (see copies()).
     static openvdb::Coord periodicCopies(const Cloud& cloud, const CloudTransferOptions& options);
-    /// @brief The direction pairs asked for: options.directions, or for 0 (auto) 2000 (K / 10)^2
-    /// at phase order K where the phase function's asymmetry |g| > 0.5, else 300 (measured:
-    /// docs/journal/2026-12-04-step-cloud-swept-in-its-plane.md).
+    /// @brief The direction pairs asked for: options.directions, or for 0 (auto) 1000 where
+    /// the phase function's asymmetry |g| > 0.5, else 300 (measured:
+    /// docs/journal/2026-12-07-production-clouds.md).
     static int directionCount(const CloudTransferOptions& options);
     /// @brief The phase order solved: 0 for an isotropic phase, else options.phaseOrder, or
-    /// for -1 (auto) the smallest K >= 8 with |chi_{K+1}| <= 0.17, at most 16 (delta-M then
-    /// moves at most 17 % of the phase function into the forward peak:
-    /// docs/journal/2026-12-04-step-cloud-swept-in-its-plane.md).
+    /// for -1 (auto) 8: delta-M moves the rest into the forward peak (31 % of a g = 0.877
+    /// HG), the beam's first scattering keeps the whole phase function (Tables::beam), and
+    /// slabs of g 0.85-0.9 stay within 0.25 % of adding-doubling, the I3RC step cloud within
+    /// 0.2 % of Monte Carlo (docs/journal/2026-12-07-production-clouds.md; orders 10-16 and
+    /// 2000-5000 directions cost 3-4 times the time, and 16 GiB on a 416 k voxel cloud).
     static int phaseOrderFor(const CloudTransferOptions& options);
     /// @brief options.accelerate, or where unset: Anderson where plain source iteration would
     /// take more than ~20 sweeps to 1e-6, that is where its slowest mode, estimated as
     /// omega0 tau / (tau + 2) (the fraction of scattered light that scatters again in a
     /// two-stream slab of the thickest column's optical thickness tau, after delta-M scaling,
     /// with the largest single-scattering albedo), decays slower than 1/2 per sweep; else none
-    /// (Anderson keeps 2m + 2 copies of the moments).
+    /// (Anderson keeps 2m + 2 copies of the moments of order <= 1).
     static Acceleration chooseAcceleration(const Cloud& cloud,
         const CloudTransferOptions& options);
 
@@ -318,7 +319,16 @@ private:
     CloudBudget mBudget;
 };
 
+/// @brief The medium a periodic transfer of @a cloud (options.periodic) solves in its place: one
+/// voxel deep along each horizontal axis along which @a cloud does not vary (uniformAxes(),
+/// sliceCloud()), so that the file's layers along it change nothing (the I3RC step cloud
+/// written four deep took 229 s, one deep 25 s). Null where that is @a cloud itself (open
+/// boxes, surfaces inside, no uniform axis).
+std::unique_ptr<Cloud> uniformSlice(const Cloud& cloud, const CloudTransferOptions& options);
+
 /// @brief Solve the transfer in @a cloud and return its `mean_intensity` grid (see grid()).
+/// A periodic box uniform along a horizontal axis is solved as its uniformSlice(), the results
+/// extended along the axis.
 /// @a control: checkpoints and reports (SolveControl); @a ground, if not null, gets the
 /// ground's irradiance (groundGrid(); null without a ground); @a radiosity, if not null, the
 /// surfaces' `radiosity` grid (CloudTransferOptions::surfaces; null without). An RGB albedo

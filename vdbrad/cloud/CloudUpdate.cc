@@ -143,13 +143,17 @@ CloudTransfer::Impl::updateSurfaces(const Sweep& sw, Change& change)
     return surfaceAbsorbed;
 }
 
-// What Anderson mixes: the moments and, with periodic boundaries, the light carried across the
+// What Anderson mixes: the moments of order l <= 1 (mixedMoments()) and, with periodic boundaries, the light carried across the
 // side faces (in a thin periodic slab light wraps many times, and that carry-over is then the
 // slowest mode), what the ground and the surfaces received.
 std::vector<float>
 CloudTransfer::Impl::mixedState() const
 {
-    std::vector<float> x = moments;
+    const size_t M = size_t(this->M), K = mixedMoments();
+    std::vector<float> x(n * K);
+    for (size_t i = 0; i < n; ++i) {
+        for (size_t k = 0; k < K; ++k) x[i * K + k] = moments[i * M + k];
+    }
     x.insert(x.end(), leftFace.begin(), leftFace.end());
     x.insert(x.end(), groundDiffuse.begin(), groundDiffuse.end());
     x.insert(x.end(), surfaceLanded.begin(), surfaceLanded.end());
@@ -163,16 +167,18 @@ CloudTransfer::Impl::mixedState() const
 void
 CloudTransfer::Impl::mix(const std::vector<float>& x)
 {
-    const size_t M = size_t(this->M);
+    const size_t M = size_t(this->M), K = mixedMoments();
     std::vector<float> gx = mixedState();
     andersonStep(*mixer, x.data(), gx.data(), [&](const float* v) {
-        for (size_t i = 0; i < n; ++i) if (!(v[i * M] >= 0.f)) return false;
-        for (size_t k = n * M; k < gx.size(); ++k) if (!(v[k] >= 0.f)) return false;
+        for (size_t i = 0; i < n; ++i) if (!(v[i * K] >= 0.f)) return false;
+        for (size_t k = n * K; k < gx.size(); ++k) if (!(v[k] >= 0.f)) return false;
         return true;
     });
-    const auto faces = gx.begin() + long(n * M), lands = faces + long(leftFace.size());
+    const auto faces = gx.begin() + long(n * K), lands = faces + long(leftFace.size());
     const auto onSurfaces = lands + long(groundDiffuse.size());
-    std::copy(gx.begin(), faces, moments.begin());
+    for (size_t i = 0; i < n; ++i) {
+        for (size_t k = 0; k < K; ++k) moments[i * M + k] = gx[i * K + k];
+    }
     std::copy(faces, lands, leftFace.begin());
     std::copy(lands, onSurfaces, groundDiffuse.begin());
     std::copy(onSurfaces, gx.end(), surfaceLanded.begin());

@@ -97,13 +97,81 @@ solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
     return g;
 }
 
+// @a slice's values repeated along @a axes over @a box: the whole medium's grid, its name,
+// transform and metadata kept.
+template<typename GridT>
+typename GridT::Ptr
+extended(const GridT& slice, const openvdb::CoordBBox& box, const std::array<bool, 3>& axes)
+{
+    typename GridT::Ptr whole = GridT::create(slice.background());
+    whole->setTransform(slice.transform().copy());
+    whole->setName(slice.getName());
+    whole->setGridClass(slice.getGridClass());
+    for (auto m = slice.beginMeta(); m != slice.endMeta(); ++m) {
+        if (m->second) whole->insertMeta(m->first, *m->second);
+    }
+    auto acc = whole->getAccessor();
+    openvdb::Coord lo, hi;
+    for (auto it = slice.cbeginValueOn(); it; ++it) {
+        const openvdb::Coord c = it.getCoord();
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = axes[size_t(k)] ? box.min()[k] : c[k];
+            hi[k] = axes[size_t(k)] ? box.max()[k] : c[k];
+        }
+        for (int x = lo.x(); x <= hi.x(); ++x) {
+            for (int y = lo.y(); y <= hi.y(); ++y) {
+                for (int z = lo.z(); z <= hi.z(); ++z) acc.setValue({x, y, z}, *it);
+            }
+        }
+    }
+    return whole;
+}
+
+openvdb::GridBase::Ptr
+extendedGrid(const openvdb::GridBase::Ptr& slice, const openvdb::CoordBBox& box,
+    const std::array<bool, 3>& axes)
+{
+    if (!slice) return slice;
+    if (const auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(slice)) {
+        return extended(*f, box, axes);
+    }
+    if (const auto v = openvdb::gridPtrCast<openvdb::Vec3SGrid>(slice)) {
+        return extended(*v, box, axes);
+    }
+    OPENVDB_THROW(openvdb::TypeError, "grid '" << slice->getName() << "' of type "
+        << slice->valueType() << " cannot be extended along a uniform axis");
+}
+
 } // namespace
+
+std::unique_ptr<Cloud>
+uniformSlice(const Cloud& cloud, const CloudTransferOptions& options)
+{
+    if (!options.periodic || options.surfaces) return nullptr;
+    const std::array<bool, 3> axes = uniformAxes(cloud, options.up);
+    if (!(axes[0] || axes[1] || axes[2])) return nullptr;
+    return std::make_unique<Cloud>(sliceCloud(cloud, axes));
+}
 
 openvdb::GridBase::Ptr
 solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
     openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity)
 {
+    if (const std::unique_ptr<Cloud> slice = uniformSlice(cloud, options)) {
+        const openvdb::CoordBBox box = cloud.voxels().bbox();
+        std::array<bool, 3> axes{};
+        for (int k = 0; k < 3; ++k) {
+            axes[size_t(k)] = slice->voxels().bbox().dim()[k] < box.dim()[k];
+        }
+        openvdb::GridBase::Ptr J = solveCloud(*slice, options, interrupt, control, ground,
+            radiosity);
+        if (ground && *ground) {
+            // The ground's layer lies under the box, one voxel below it along the vertical.
+            *ground = openvdb::gridPtrCast<openvdb::FloatGrid>(extendedGrid(*ground, box, axes));
+        }
+        return extendedGrid(J, box, axes);
+    }
     if (isRgb(cloud, options)) {
         if (ground) ground->reset();
         return solveCloudRgb(cloud, options, interrupt, control, radiosity);

@@ -47,9 +47,9 @@ mediumOptions()
             "instead of --g"},
         {"phase-order", OptionType::String, "auto", "6",
             "spherical-harmonic order kept for an anisotropic phase (delta-M beyond), "
-            "0 to 32; (order + 1)^2 floats per voxel; auto: the smallest order >= 8 "
-            "that leaves at most 17 % of the phase function to delta-M (8 for g <= "
-            "0.82, 10 for 0.85, 16 for 0.9)"},
+            "0 to 32; (order + 1)^2 floats per voxel; auto: 8 (the beam's first "
+            "scattering keeps the whole phase function; slabs g 0.85-0.9 within 0.25 % "
+            "of adding-doubling)"},
         OptionSpec{"voxel-source", OptionType::String, "linear", "constant",
             "the scattered light's shape inside a voxel along each line step: linear "
             "(its slope from the voxels before and after: right in voxels of optical "
@@ -96,7 +96,7 @@ iterationOptions()
         {"directions", OptionType::String, "auto", "1000",
             "direction pairs swept per iteration (the nearest count a discrete sphere "
             "gives is used); auto: for a phase function of asymmetry |g| > 0.5 (its "
-            "peak must be carried from voxel to voxel) 2000 (order / 10)^2, else 300"},
+            "peak must be carried from voxel to voxel) 1000, else 300"},
         OptionSpec{"iterations", OptionType::Int, "1000", "100", "source-iteration cap"}
             .atLeast(1),
         OptionSpec{"tolerance", OptionType::Float, "1e-6", "1e-4",
@@ -105,7 +105,7 @@ iterationOptions()
         OptionSpec{"accelerate", OptionType::String, "auto", "none",
             "anderson: Anderson mixing of the last --anderson-depth iterates (tens of sweeps "
             "instead of hundreds in optically thick, conservative clouds; 2 x depth + 2 copies "
-            "of the moments); auto: anderson where the thickest column's plain sweeps would "
+            "of the moments of order <= 1); auto: anderson where the thickest column's plain sweeps would "
             "decay slower than 1/2 per sweep (omega0 tau / (tau + 2) > 1/2, delta-M scaled), "
             "else none"}
             .oneOf({"auto", toString(Acceleration::None), toString(Acceleration::Anderson)}),
@@ -276,13 +276,16 @@ CloudSolve::plan()
     const int threads = workerThreads();
     p.heldBytes = heldBytes(mInputBytes + double(mCloud.memUsage() + mScene.memUsage()));
     p.limitBytes = memoryLimit(mRequest, mRanks);
-    p.solverBytes = double(CloudTransfer::memoryEstimate(mCloud, mOptions, threads));
+    // What the transfer solves: a periodic box uniform along an axis, one voxel deep.
+    const std::unique_ptr<Cloud> slice = uniformSlice(mCloud, mOptions);
+    const Cloud& solved = slice ? *slice : mCloud;
+    p.solverBytes = double(CloudTransfer::memoryEstimate(solved, mOptions, threads));
     p.maxIterations = mOptions.maxIterations;
     p.directions = int(DirectionSet::fromCount(CloudTransfer::directionCount(mOptions)).size());
     const int order = CloudTransfer::phaseOrderFor(mOptions);
     const int share = mRanks ? mRanks->ranks() : 1;
     p.secondsPerIteration = (kIsotropicSeconds + kPerOrderSeconds * order)
-        * double(mCloud.size() + mScene.size()) * double(p.directions)
+        * double(solved.size() + mScene.size()) * double(p.directions)
         / double(std::max(1, threads * share));
     mPlanned = true;
     p.checkMemory(mRequest.spell("max-memory"), "fewer voxels or directions, or no "

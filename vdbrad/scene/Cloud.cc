@@ -212,6 +212,47 @@ tileCloud(const Cloud& cloud, const openvdb::Coord& copies, std::vector<uint32_t
     return remapped(cloud, std::move(tiled), std::move(from), source);
 }
 
+std::array<bool, 3>
+uniformAxes(const Cloud& cloud, int up)
+{
+    const VoxelIndex& voxels = cloud.voxels();
+    const openvdb::CoordBBox box = voxels.bbox();
+    const Attribute &albedo = cloud.albedo(), &emission = cloud.emission();
+    std::array<bool, 3> uniform{};
+    for (int k = 0; k < 3; ++k) {
+        if (k == up || box.dim()[k] < 2) continue;
+        bool same = true;
+        for (size_t i = 0; i < voxels.size() && same; ++i) {
+            openvdb::Coord next = voxels.coord(i);
+            next[k] = next[k] == box.max()[k] ? box.min()[k] : next[k] + 1;
+            const int64_t j = voxels.find(next);
+            same = j >= 0 && cloud.extinction(i) == cloud.extinction(size_t(j))
+                && albedo.rgb(i) == albedo.rgb(size_t(j))
+                && emission.rgb(i) == emission.rgb(size_t(j));
+        }
+        uniform[size_t(k)] = same;
+    }
+    return uniform;
+}
+
+Cloud
+sliceCloud(const Cloud& cloud, const std::array<bool, 3>& axes, std::vector<uint32_t>* source)
+{
+    const VoxelIndex& voxels = cloud.voxels();
+    const openvdb::CoordBBox box = voxels.bbox();
+    openvdb::MaskTree mask;
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> acc(mask);
+    for (const openvdb::Coord& ijk : voxels.coords()) {
+        bool first = true;
+        for (int k = 0; k < 3; ++k) first = first && (!axes[size_t(k)] || ijk[k] == box.min()[k]);
+        if (first) acc.setValueOn(ijk);
+    }
+    VoxelIndex slice(mask);
+    std::vector<uint32_t> from(slice.size());
+    for (size_t i = 0; i < slice.size(); ++i) from[i] = uint32_t(voxels.find(slice.coord(i)));
+    return remapped(cloud, std::move(slice), std::move(from), source);
+}
+
 Cloud
 filledBox(const Cloud& cloud, std::vector<uint32_t>* source)
 {

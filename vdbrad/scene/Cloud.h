@@ -19,6 +19,7 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -119,5 +120,18 @@ constexpr uint32_t kNoCloudVoxel = Attribute::kNone;
 ///                kNoCloudVoxel for the added ones
 /// @throw openvdb::ValueError if the box has too many voxels (VoxelIndex)
 Cloud filledBox(const Cloud& cloud, std::vector<uint32_t>* source = nullptr);
+
+/// @brief The axes other than @a up along which @a cloud does not vary over its bounding box:
+/// every voxel's neighbour along the axis (the box's far layer wrapping to its first) is a
+/// voxel too, of the same extinction, albedo and emission. A periodic box uniform along an axis
+/// is the same medium one voxel deep along it (sliceCloud()), which the transfer sweeps in the
+/// plane of the other axes, however many layers the file happened to have.
+std::array<bool, 3> uniformAxes(const Cloud& cloud, int up);
+
+/// @brief The first layer of @a cloud's bounding box along each axis of @a axes: one voxel
+/// deep along them.
+/// @param source  if not null, set to the voxel of @a cloud that each voxel of the result is
+Cloud sliceCloud(const Cloud& cloud, const std::array<bool, 3>& axes,
+    std::vector<uint32_t>* source = nullptr);
 
 } // namespace vdbrad
