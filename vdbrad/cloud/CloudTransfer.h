@@ -159,7 +159,8 @@ struct CloudTransferOptions
     int phaseOrder = -1;
     /// Anderson acceleration (Acceleration.h) of the source iteration, over the radiance
     /// moments of order l <= 1 (n x 4 numbers; the plain step carries the higher ones) and
-    /// the light a periodic box carries over to the next iteration across its side faces. Unset (auto): Anderson where plain sweeps would be slow
+    /// the light a periodic box carries over to the next iteration across its side faces.
+    /// Unset (auto): Anderson where plain sweeps would be slow
     /// (CloudTransfer::chooseAcceleration()).
     std::optional<Acceleration> accelerate;
     /// Anderson history length m: 2m + 2 copies of the mixed state are kept.
@@ -339,5 +340,12 @@ openvdb::GridBase::Ptr solveCloud(const Cloud& cloud, const CloudTransferOptions
     openvdb::util::NullInterrupter* interrupt = nullptr,
     const SolveControl& control = SolveControl(), openvdb::FloatGrid::Ptr* ground = nullptr,
     openvdb::GridBase::Ptr* radiosity = nullptr);
+
+/// @brief solveCloud() given the uniformSlice() of @a cloud already built (null where there is
+/// none), for callers that planned on the slice: the neighbour scan and the copy run once.
+openvdb::GridBase::Ptr solveCloud(const Cloud& cloud, const Cloud* slice,
+    const CloudTransferOptions& options, openvdb::util::NullInterrupter* interrupt,
+    const SolveControl& control, openvdb::FloatGrid::Ptr* ground,
+    openvdb::GridBase::Ptr* radiosity);
 
 } // namespace vdbrad

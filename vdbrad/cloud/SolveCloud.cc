@@ -158,7 +158,16 @@ solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
     openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity)
 {
-    if (const std::unique_ptr<Cloud> slice = uniformSlice(cloud, options)) {
+    const std::unique_ptr<Cloud> slice = uniformSlice(cloud, options);
+    return solveCloud(cloud, slice.get(), options, interrupt, control, ground, radiosity);
+}
+
+openvdb::GridBase::Ptr
+solveCloud(const Cloud& cloud, const Cloud* slice, const CloudTransferOptions& options,
+    openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
+    openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity)
+{
+    if (slice) {
         const openvdb::CoordBBox box = cloud.voxels().bbox();
         std::array<bool, 3> axes{};
         for (int k = 0; k < 3; ++k) {

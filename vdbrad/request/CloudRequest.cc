@@ -105,8 +105,8 @@ iterationOptions()
         OptionSpec{"accelerate", OptionType::String, "auto", "none",
             "anderson: Anderson mixing of the last --anderson-depth iterates (tens of sweeps "
             "instead of hundreds in optically thick, conservative clouds; 2 x depth + 2 copies "
-            "of the moments of order <= 1); auto: anderson where the thickest column's plain sweeps would "
-            "decay slower than 1/2 per sweep (omega0 tau / (tau + 2) > 1/2, delta-M scaled), "
+            "of the moments of order <= 1); auto: anderson where the thickest column's plain "
+            "sweeps would decay slower than 1/2 per sweep (omega0 tau / (tau + 2) > 1/2, delta-M scaled), "
             "else none"}
             .oneOf({"auto", toString(Acceleration::None), toString(Acceleration::Anderson)}),
         options::andersonDepth(),
@@ -277,8 +277,8 @@ CloudSolve::plan()
     p.heldBytes = heldBytes(mInputBytes + double(mCloud.memUsage() + mScene.memUsage()));
     p.limitBytes = memoryLimit(mRequest, mRanks);
     // What the transfer solves: a periodic box uniform along an axis, one voxel deep.
-    const std::unique_ptr<Cloud> slice = uniformSlice(mCloud, mOptions);
-    const Cloud& solved = slice ? *slice : mCloud;
+    mSlice = uniformSlice(mCloud, mOptions);
+    const Cloud& solved = mSlice ? *mSlice : mCloud;
     p.solverBytes = double(CloudTransfer::memoryEstimate(solved, mOptions, threads));
     p.maxIterations = mOptions.maxIterations;
     p.directions = int(DirectionSet::fromCount(CloudTransfer::directionCount(mOptions)).size());
@@ -301,8 +301,8 @@ CloudSolve::run(openvdb::util::NullInterrupter* interrupt, SolveControl control)
     control = reportingInto(result, std::move(control), mRequest, mRanks);
     openvdb::FloatGrid::Ptr ground;
     openvdb::GridBase::Ptr radiosity;
-    const openvdb::GridBase::Ptr intensity = solveCloud(mCloud, mOptions, interrupt, control,
-        &ground, &radiosity);
+    const openvdb::GridBase::Ptr intensity = solveCloud(mCloud, mSlice.get(), mOptions,
+        interrupt, control, &ground, &radiosity);
     intensity->setName(mRequest.getString("output-name"));
     recordEmission(*intensity, mCloud, mCloudOptions);
     recordLight(mRequest, *intensity);

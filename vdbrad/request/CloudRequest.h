@@ -11,6 +11,7 @@
 #include "vdbrad/scene/Scene.h"
 
 #include <openvdb/util/NullInterrupter.h>
+#include <memory>
 
 #include <string>
 #include <vector>
@@ -51,6 +52,7 @@ private:
     CloudTransferOptions mOptions;
     Scene mScene;
     Cloud mCloud;
+    std::unique_ptr<Cloud> mSlice;   // what a periodic box uniform along an axis solves (plan())
     double mInputBytes = 0.0;
     bool mRead = false, mPlanned = false;
     SolvePlan mPlan;

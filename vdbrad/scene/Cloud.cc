@@ -236,7 +236,7 @@ uniformAxes(const Cloud& cloud, int up)
 }
 
 Cloud
-sliceCloud(const Cloud& cloud, const std::array<bool, 3>& axes, std::vector<uint32_t>* source)
+sliceCloud(const Cloud& cloud, const std::array<bool, 3>& axes)
 {
     const VoxelIndex& voxels = cloud.voxels();
     const openvdb::CoordBBox box = voxels.bbox();
@@ -250,7 +250,7 @@ sliceCloud(const Cloud& cloud, const std::array<bool, 3>& axes, std::vector<uint
     VoxelIndex slice(mask);
     std::vector<uint32_t> from(slice.size());
     for (size_t i = 0; i < slice.size(); ++i) from[i] = uint32_t(voxels.find(slice.coord(i)));
-    return remapped(cloud, std::move(slice), std::move(from), source);
+    return remapped(cloud, std::move(slice), std::move(from), nullptr);
 }
 
 Cloud

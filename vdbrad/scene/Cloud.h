@@ -130,8 +130,6 @@ std::array<bool, 3> uniformAxes(const Cloud& cloud, int up);
 
 /// @brief The first layer of @a cloud's bounding box along each axis of @a axes: one voxel
 /// deep along them.
-/// @param source  if not null, set to the voxel of @a cloud that each voxel of the result is
-Cloud sliceCloud(const Cloud& cloud, const std::array<bool, 3>& axes,
-    std::vector<uint32_t>* source = nullptr);
+Cloud sliceCloud(const Cloud& cloud, const std::array<bool, 3>& axes);
 
 } // namespace vdbrad
