@@ -5,7 +5,9 @@
 // the cost per voxel.direction.iteration. The slab is W x H x W voxels; periodic boundaries make
 // it infinite.
 //
-//   build/benchmarks/bench_cloud [directions=300] [layers=20] [omega0=1] [width=4] [g=0] [order=8]
+//   build/benchmarks/bench_cloud [directions=300] [layers=20] [omega0=1] [width=4]
+//                                [g=0, or a file of Legendre coefficients such as
+//                                samples/phase/cloud_c1.txt] [order=8, -1 auto]
 //                                [csv=] (appends rows, with the photon Monte Carlo and delta-
 //                                Eddington albedos, for scripts/plot-cloud.py; - for none)
 //                                [accelerate=none|anderson|both] (both: each slab is solved
@@ -41,8 +43,26 @@ main(int argc, char** argv)
     const int layers = argc > 2 ? std::atoi(argv[2]) : 20;
     const float omega0 = argc > 3 ? float(std::atof(argv[3])) : 1.f;
     const int width = argc > 4 ? std::atoi(argv[4]) : 4;
-    const double g = argc > 5 ? std::atof(argv[5]) : 0.0;
+    // g, or a file of Legendre coefficients (PhaseFunction::readLegendre; adding-doubling sums
+    // the series at 128 nodes, which integrate its 300 terms exactly).
+    const std::string phaseArg = argc > 5 ? argv[5] : "0";
+    char* gEnd = nullptr;
+    const double gGiven = std::strtod(phaseArg.c_str(), &gEnd);
+    const bool tabulated = *gEnd != '\0';
+    const vdbrad::PhaseFunction phase = tabulated
+        ? vdbrad::PhaseFunction::readLegendre(phaseArg)
+        : vdbrad::PhaseFunction::henyeyGreenstein(gGiven);
+    const double g = phase.asymmetry();
+    std::vector<double> chi;
+    for (int l = 0; tabulated && l < 100000 && (l == 0 || phase.chi(l) != 0.0); ++l) {
+        chi.push_back(phase.chi(l));
+    }
     const int order = argc > 6 ? std::atoi(argv[6]) : 8;
+    if (tabulated && argc > 7 && std::string(argv[7]) != "-") {
+        std::fprintf(stderr, "bench_cloud: the csv's Monte Carlo column is Henyey-Greenstein "
+            "only: give - for csv with a phase file\n");
+        return 2;
+    }
     std::FILE* csv = argc > 7 && std::string(argv[7]) != "-" ? std::fopen(argv[7], "a") : nullptr;
     const std::string accelerate = argc > 8 ? argv[8] : "none";
     const std::string tauList = argc > 9 ? argv[9] : "0.5,1,2,5,10,20,50";
@@ -66,8 +86,9 @@ main(int argc, char** argv)
         std::fprintf(csv, "g,tau,albedo,exact,monte_carlo,mc_stderr,delta_eddington,iterations,"
             "seconds,to1_iterations\n");
     }
-    std::printf("periodic slab %d x %d x %d, HG g %.3f (order %d), omega0 %.3f, %d directions "
-        "asked, %s source per voxel, %s weights\n", width, layers, width, g, order, omega0, dirs,
+    std::printf("periodic slab %d x %d x %d, %s g %.3f (order %d), omega0 %.3f, %d directions "
+        "asked, %s source per voxel, %s weights\n", width, layers, width,
+        tabulated ? phaseArg.c_str() : "HG", g, order, omega0, dirs,
         linear ? "linear" : "constant", cells ? "cell" : "harmonic");
     std::printf("%8s %9s %7s %10s %10s %8s %10s %10s %10s %10s %6s %8s %12s %12s\n", "tau",
         "accel", "copies", "albedo", "exact",
@@ -89,20 +110,22 @@ main(int argc, char** argv)
         o.directions = dirs;
         o.tolerance = 1e-6;
         o.maxIterations = maxIterations;
-        o.phase = vdbrad::PhaseFunction::henyeyGreenstein(g);
+        o.phase = phase;
         o.phaseOrder = order;
         o.source = linear ? vdbrad::VoxelSource::Linear : vdbrad::VoxelSource::Constant;
         o.harmonicWeights = !cells;
         vdbrad::test::SlabProblem problem;
         problem.tau = tau;
         problem.omega0 = omega0;
-        problem.g = g;
+        problem.g = tabulated ? 0.0 : g;
+        problem.legendre = chi;
         vdbrad::test::MonteCarloRun photons;
         photons.photons = 2000000;
         photons.seed = 5;
-        const vdbrad::test::SlabResult reference = std::abs(g) > 0.95
-            ? vdbrad::test::slabMonteCarlo(problem, photons)
-            : vdbrad::test::addingDoublingSlab(problem);
+        const vdbrad::test::SlabResult reference = tabulated
+            ? vdbrad::test::addingDoublingSlab(problem, 128)
+            : std::abs(g) > 0.95 ? vdbrad::test::slabMonteCarlo(problem, photons)
+                                 : vdbrad::test::addingDoublingSlab(problem);
         const double exact = reference.reflectance;
         for (const vdbrad::Acceleration mode : modes) {
         double asGiven = 0.0;

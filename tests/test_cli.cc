@@ -768,6 +768,43 @@ TEST_F(CliTest, SolveCloudChoosesItsSettingsFromThePhaseAndTheMedium)
     EXPECT_EQ(iso.err.find("phase order"), std::string::npos) << iso.err;
 }
 
+TEST_F(CliTest, MiePhaseFunctionsComeFromAFile)
+{
+    // Issue 46: --legendre-file reads a tabulated phase function (Mie; the C.1 sample's 300
+    // coefficients pick the forward-peak defaults of g 0.848); a file gives the bits of the same
+    // coefficients on the command line; one phase option at a time, and a file that is missing,
+    // not numbers or (2l + 1) chi_l is refused in one line with nothing written.
+    ASSERT_EQ(sh("vdbrad make slab s.vdb --res 8 --tau 2 --quiet").status, 0);
+    const std::string c1 = std::string(VDBRAD_SOURCE_DIR) + "/samples/phase/cloud_c1.txt";
+    const Result mie = sh("vdbrad solve-cloud s.vdb m.vdb --periodic --iterations 2 "
+                          "--legendre-file " + c1);
+    ASSERT_EQ(mie.status, 0) << mie.err;
+    for (const char* said : {"967 directions (nearest to 1000)", "phase order 8"}) {
+        EXPECT_NE(mie.err.find(said), std::string::npos) << said << "\n" << mie.err;
+    }
+    writeText("chi.txt", "# chi_l\n1\n0.7 0.4\n");
+    for (const std::string phase : {"--legendre-file chi.txt", "--legendre 1,0.7,0.4"}) {
+        const std::string out = phase[10] == '-' ? "f.vdb" : "l.vdb";
+        ASSERT_EQ(sh("vdbrad solve-cloud s.vdb " + out + " --periodic --iterations 2 --quiet "
+            + phase).status, 0) << phase;
+    }
+    EXPECT_TRUE(valueBits(path("f.vdb"), "mean_intensity")
+        == valueBits(path("l.vdb"), "mean_intensity"));
+    writeText("beta.txt", "1 2.544 3.883\n");
+    writeText("word.txt", "1 0.5 half\n");
+    for (const auto& [args, says] : {std::pair<std::string, std::string>{
+             "--legendre-file chi.txt --g 0.5", "give one of --g, --legendre and --legendre-file"},
+             {"--legendre-file beta.txt", "divide each by 2l + 1"},
+             {"--legendre-file word.txt", "line 1: 'half' is not a number"},
+             {"--legendre-file absent.txt", "absent.txt"}}) {
+        const Result r = sh("vdbrad solve-cloud s.vdb refused.vdb --periodic " + args);
+        EXPECT_NE(r.status, 0) << args;
+        EXPECT_NE(r.err.find(says), std::string::npos) << args << "\n" << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_FALSE(exists(path("refused.vdb"))) << args;
+    }
+}
+
 TEST_F(CliTest, NarrowPeriodicCloudIsSolvedAsCopiesUnlessToldNot)
 {
     // A 6-wide periodic cumulus with 303 directions (auto: 9 voxels at least) is solved as

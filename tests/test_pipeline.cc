@@ -287,7 +287,7 @@ TEST_F(PipelineTest, SolveCloudErrorsGiveOneLine)
         {"c.vdb out.vdb --g 1", "--g must be in (-1, 1)", 2},
         {"c.vdb out.vdb --legendre 0.5,0.2", "chi_0 = 1", 2},
         {"c.vdb out.vdb --legendre 1,x", "'x' is not a number", 2},
-        {"c.vdb out.vdb --g 0.5 --legendre 1,0.5", "not both", 2},
+        {"c.vdb out.vdb --g 0.5 --legendre 1,0.5", "give one of --g", 2},
         {"c.vdb out.vdb --phase-order 40", "--phase-order must be auto or an order in [0, 32]", 2},
     };
     for (const Case& c : cases) {

@@ -1,11 +1,15 @@
 #include "vdbrad/cloud/PhaseFunction.h"
 #include "vdbrad/core/Constants.h"
+#include "vdbrad/core/Errors.h"
 #include "vdbrad/sweep/RealHarmonics.h"
 
 #include <openvdb/Exceptions.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
 #include <utility>
 
 namespace vdbrad {
@@ -42,6 +46,49 @@ PhaseFunction::legendre(std::vector<double> chi)
     PhaseFunction p;
     p.mChi = std::move(chi);
     return p;
+}
+
+PhaseFunction
+PhaseFunction::readLegendre(const std::string& path)
+{
+    std::ifstream in(path);
+    if (!in) OPENVDB_THROW(openvdb::IoError, "cannot read phase file " << path);
+    std::vector<double> chi;
+    std::string text;
+    for (size_t line = 1; std::getline(in, text); ++line) {
+        text = text.substr(0, text.find('#'));
+        std::replace(text.begin(), text.end(), ',', ' ');
+        std::istringstream words(text);
+        for (std::string word; words >> word;) {
+            char* end = nullptr;
+            const double v = std::strtod(word.c_str(), &end);
+            if (*end != '\0' || !std::isfinite(v)) {
+                OPENVDB_THROW(openvdb::ValueError, path << " line " << line << ": '" << word
+                    << "' is not a number (expected Legendre coefficients chi_0 = 1, chi_1, ...)");
+            }
+            if (chi.size() == kMaxCoefficients) {
+                OPENVDB_THROW(openvdb::ValueError, path << " holds more than "
+                    << kMaxCoefficients << " Legendre coefficients");
+            }
+            chi.push_back(v);
+        }
+    }
+    if (in.bad()) OPENVDB_THROW(openvdb::IoError, "cannot read phase file " << path);
+    if (chi.empty()) OPENVDB_THROW(openvdb::ValueError, path << " holds no Legendre coefficients");
+    // Tables list beta_l = (2l + 1) chi_l as often as chi_l; beta_1 = 3 g exceeds 1 where g > 1/3.
+    bool beta = chi.size() > 1 && std::abs(chi[1]) > 1.0;
+    for (size_t l = 0; l < chi.size() && beta; ++l) {
+        beta = std::abs(chi[l]) <= 2.0 * double(l) + 1.0;
+    }
+    if (beta) {
+        OPENVDB_THROW(openvdb::ValueError, path << ": chi_1 = " << chi[1] << " > 1: these "
+            "look like (2l + 1) chi_l; divide each by 2l + 1");
+    }
+    try {
+        return legendre(std::move(chi));
+    } catch (const openvdb::ValueError& e) {
+        OPENVDB_THROW(openvdb::ValueError, path << ": " << errorMessage(e));
+    }
 }
 
 double

@@ -17,6 +17,7 @@
 
 #include <openvdb/Types.h>
 
+#include <string>
 #include <vector>
 
 namespace vdbrad {
@@ -35,6 +36,16 @@ public:
     /// coefficients are taken as 0.
     /// @throw openvdb::ValueError if chi_0 != 1 or some |chi_l| > 1
     static PhaseFunction legendre(std::vector<double> chi);
+
+    /// @brief legendre() of the coefficients chi_0 = 1, chi_1, ... in the text file @a path
+    /// (a Mie code's output; samples/phase/): numbers separated by white space or commas, `#`
+    /// starting a comment.
+    /// @throw openvdb::IoError if the file cannot be read; openvdb::ValueError for a word that
+    /// is not a number (naming its line), no coefficients, more than kMaxCoefficients, or as
+    /// legendre(), with a hint where the numbers are (2l + 1) chi_l (tables such as Garcia and
+    /// Siewert's list those)
+    static PhaseFunction readLegendre(const std::string& path);
+    static constexpr size_t kMaxCoefficients = 100000;
 
     /// chi_l (0 beyond the known coefficients, or g^l for Henyey-Greenstein).
     double chi(int l) const;

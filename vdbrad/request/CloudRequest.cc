@@ -45,6 +45,10 @@ mediumOptions()
         {"legendre", OptionType::String, "", "1,0.8,0.6",
             "phase function as Legendre coefficients chi_0 = 1, chi_1, ... (e.g. Mie), "
             "instead of --g"},
+        {"legendre-file", OptionType::String, "", "c1.txt",
+            "phase function as Legendre coefficients chi_0 = 1, chi_1, ... read from a text "
+            "file (white space or commas, # comments; e.g. a Mie code's output, "
+            "samples/phase/cloud_c1.txt), instead of --g"},
         {"phase-order", OptionType::String, "auto", "6",
             "spherical-harmonic order kept for an anisotropic phase (delta-M beyond), "
             "0 to 32; (order + 1)^2 floats per voxel; auto: 8 (the beam's first "
@@ -117,8 +121,19 @@ iterationOptions()
 PhaseFunction
 phaseFunction(const Request& r)
 {
+    const int given = int(r.has("g")) + int(r.has("legendre")) + int(r.has("legendre-file"));
+    if (given > 1) {
+        r.fail("give one of " + r.spell("g") + ", " + r.spell("legendre") + " and "
+            + r.spell("legendre-file"));
+    }
+    if (r.has("legendre-file")) {
+        try {
+            return PhaseFunction::readLegendre(r.getString("legendre-file"));
+        } catch (const openvdb::ValueError& e) {
+            r.fail(r.spell("legendre-file") + ": " + errorMessage(e));
+        }
+    }
     if (!r.has("legendre")) return PhaseFunction::henyeyGreenstein(r.getFloat("g"));
-    if (r.has("g")) r.fail("give " + r.spell("g") + " or " + r.spell("legendre") + ", not both");
     const std::vector<double> chi = r.numbers("legendre", 0, "chi_0 = 1, chi_1, ...");
     try {
         return PhaseFunction::legendre(chi);
