@@ -135,19 +135,38 @@ CloudTransfer::Impl::sweepBatch(const CloudTransfer& t, int g, const size_t* dir
             for (size_t h = 0; h < H; ++h) Yt[h * W + k] = Y[k * H + h] = y[h];
         }
         const std::vector<float>& S = sw.S[p];
+        std::vector<float>& G = sw.G[size_t(g)];
         batch.R.resize(n * W);
         batch.Lbar.assign(n * W, 0.f);
-        for (size_t x = 0; x < n; ++x) {
-            rowTimesMatrix(&S[x * M + 1], Yt, H, W, W, &batch.R[x * W], false);
+        batch.G0.resize(n);
+        batch.tile.resize(Batch::kTile * W);
+        float* tile = batch.tile.data();
+        for (size_t x0 = 0; x0 < n; x0 += Batch::kTile) {
+            const size_t rows = std::min(Batch::kTile, n - x0);
+            for (size_t i = 0; i < rows; ++i) {
+                rowTimesMatrix(&S[(x0 + i) * M + 1], Yt, H, W, W, &tile[i * W], false);
+                batch.G0[x0 + i] = G[(x0 + i) * M];
+            }
+            for (size_t k = 0; k < W; ++k) {
+                for (size_t i = 0; i < rows; ++i) batch.R[k * n + x0 + i] = tile[i * W + k];
+            }
         }
     }
     for (size_t j = 0; j < count; ++j) sweepDirection(t, g, dirs[j], 2 * j, batch, sw);
     if (M > 1) {
-        // G[x, lm] += sum over columns of Lbar[x, k] Y_lm(k), l >= 1.
+        // G[x, lm] += sum over columns of Lbar[x, k] Y_lm(k), l >= 1; I_00 back in its place.
         std::vector<float>& G = sw.G[size_t(g)];
         const float* Y = batch.Yt.data() + H * W;
-        for (size_t x = 0; x < n; ++x) {
-            rowTimesMatrix(&batch.Lbar[x * W], Y, W, H, H, &G[x * M + 1], true);
+        float* tile = batch.tile.data();
+        for (size_t x0 = 0; x0 < n; x0 += Batch::kTile) {
+            const size_t rows = std::min(Batch::kTile, n - x0);
+            for (size_t k = 0; k < W; ++k) {
+                for (size_t i = 0; i < rows; ++i) tile[i * W + k] = batch.Lbar[k * n + x0 + i];
+            }
+            for (size_t i = 0; i < rows; ++i) {
+                rowTimesMatrix(&tile[i * W], Y, W, H, H, &G[(x0 + i) * M + 1], true);
+                G[(x0 + i) * M] = batch.G0[x0 + i];
+            }
         }
     }
 }
@@ -158,15 +177,15 @@ CloudTransfer::Impl::sweepBatch(const CloudTransfer& t, int g, const size_t* dir
 struct CloudTransfer::Impl::DirectionPass
 {
     const Impl& impl;
-    const size_t d, column, M;
+    const size_t d, M;
     Batch& batch;
     Sweep& sw;
     const SweepSchedule::Pattern& pattern;
     const std::vector<float>& S;
+    const float* S0;   // per voxel, S's coefficient of Y_00 (Sweep::S0)
     const std::vector<float>& B;
     const float* E;
     const std::vector<float>& kappaP;
-    std::vector<float>& G;
     std::array<double, 2>& escaped;
     double& skyEntered;
     const int up;
@@ -189,6 +208,11 @@ struct CloudTransfer::Impl::DirectionPass
     const float* yAcc[2];
     LineSweep::Lanes<Ray>& work;
     const int major;
+    // Per sense, the batch's columns of R and Lbar (null where M = 1), and where I_00 gathers:
+    // G[x M] where M = 1, the batch's G0 otherwise (Batch).
+    const float* Rcol[2];
+    float* LbarCol[2];
+    float* G00;
     // The ground (Ground.h): where light lands, and per unit of reflected power the radiance
     // the upward sense gains (the downward sense and horizontal lines gain nothing).
     const GroundLayer* layer;
@@ -208,12 +232,14 @@ struct CloudTransfer::Impl::DirectionPass
 
     DirectionPass(const Impl& i, const CloudTransfer& t, int g, size_t dir, size_t col,
         Batch& bt, Sweep& s)
-        : impl(i), d(dir), column(col), M(size_t(i.M)), batch(bt), sw(s)
+        : impl(i), d(dir), M(size_t(i.M)), batch(bt), sw(s)
         , pattern(i.schedule->pattern(SweepSchedule::patternOf(g)))
-        , S(s.S[SweepSchedule::patternOf(g)]), B(s.B[SweepSchedule::patternOf(g)])
+        , S(s.S[SweepSchedule::patternOf(g)])
+        , S0(M > 1 ? s.S0[SweepSchedule::patternOf(g)].data() : S.data())
+        , B(s.B[SweepSchedule::patternOf(g)])
         , E(s.E[SweepSchedule::patternOf(g)].empty() ? nullptr
                                                       : s.E[SweepSchedule::patternOf(g)].data())
-        , kappaP(i.kappaOrdered[SweepSchedule::patternOf(g)]), G(s.G[size_t(g)])
+        , kappaP(i.kappaOrdered[SweepSchedule::patternOf(g)])
         , escaped(s.escaped[size_t(g)]), skyEntered(s.skyEntered[size_t(g)]), up(t.mOptions.up)
         , line(sweptLine(i.schedule->directions().direction(dir), i.flat))
         , sigma(line.sigma), unit(line.unit), step(line.step)
@@ -224,6 +250,11 @@ struct CloudTransfer::Impl::DirectionPass
         , beamT{i.phase.beam[2 * dir], i.phase.beam[2 * dir + 1]}
         , yAcc{&i.phase.harmonics[2 * dir * M], &i.phase.harmonics[(2 * dir + 1) * M]}
         , work(i.lanes.local()), major(part.majorAxis())
+        , Rcol{M > 1 ? bt.R.data() + col * i.n : nullptr,
+               M > 1 ? bt.R.data() + (col + 1) * i.n : nullptr}
+        , LbarCol{M > 1 ? bt.Lbar.data() + col * i.n : nullptr,
+                  M > 1 ? bt.Lbar.data() + (col + 1) * i.n : nullptr}
+        , G00(M > 1 ? bt.G0.data() : s.G[size_t(g)].data())
         , layer(i.ground ? &*i.ground : nullptr)
         , landed(layer ? &s.landed[size_t(g)] : nullptr)
         , upward{unit[up] > 0.0, unit[up] < 0.0}
@@ -307,11 +338,10 @@ struct CloudTransfer::Impl::DirectionPass
         // over the directions in closed form (the self-scattering elimination), so that an
         // opaque voxel's I_00 is not a small difference of floats.
         const float rest = omega * (b + (L - b - r) * mean - slope * perTau);
-        G[size_t(x) * M] += rest * y[0];
+        G00[x] += rest * y[0];
         if (M > 1) {
             // The higher moments: sweepBatch() multiplies this out.
-            batch.Lbar[size_t(x) * batch.width + column + sense]
-                += omega * (s + (L - s) * mean - slope * perTau);
+            LbarCol[sense][x] += omega * (s + (L - s) * mean - slope * perTau);
         }
         ray.radiance = L + (s - L) * absorb + slope * gain;
         ray.pending = false;
@@ -400,8 +430,8 @@ struct CloudTransfer::Impl::DirectionPass
         // scattering b.
         float s0 = 0.f, r = 0.f, b = 0.f;
         if (sources) {
-            s0 = S[size_t(x) * M] * y[0];
-            if (M > 1) r = batch.R[size_t(x) * batch.width + column + sense];
+            s0 = S0[x] * y[0];
+            if (M > 1) r = Rcol[sense][x];
             b = B[x] * beamT[sense];
             if (E) b += E[x];   // isotropic, fixed: gathered whole, as the beam's
         }
@@ -572,10 +602,14 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     const size_t M = size_t(impl.M);
     const Impl::Sources source = impl.sources();
     // The sources in each pattern's order, so that the sweeps read them sequentially.
-    std::array<std::vector<float>, SweepSchedule::kPatterns> S, B, E;
+    std::array<std::vector<float>, SweepSchedule::kPatterns> S, S0, B, E;
     for (size_t p = 0; p < S.size(); ++p) {
         if (schedule.pattern(p).empty()) continue;
         schedule.toPatternOrder(p, source.source, S[p], M);
+        if (M > 1) {
+            S0[p].resize(n);
+            for (size_t x = 0; x < n; ++x) S0[p][x] = S[p][x * M];
+        }
         schedule.toPatternOrder(p, source.beam, B[p]);
         if (!impl.emitSource.empty()) schedule.toPatternOrder(p, impl.emitSource, E[p]);
     }
@@ -590,7 +624,7 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     const size_t surfaceCount = impl.surfaceLanded.size();
     std::vector<double> surfaceEmits(surfaceCount);
     for (size_t v = 0; v < surfaceCount; ++v) surfaceEmits[v] = impl.surfaceSends(v);
-    Impl::Sweep sw{S, B, E, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {},
+    Impl::Sweep sw{S, S0, B, E, emits, {}, {}, std::vector<double>(impl.leftFace.size(), 0.0), {},
         surfaceEmits, {}, {}};
     // Under MPI each rank sweeps its own groups (Distribution.h).
     const Distribution& ranks = Distribution::orAlone(mOptions.ranks, impl.alone);

@@ -165,6 +165,9 @@ struct CloudTransfer::Impl
     struct Sweep
     {
         const std::array<std::vector<float>, SweepSchedule::kPatterns>& S;
+        // Anisotropic: S's coefficient of Y_00 alone, n per pattern (the sweeps read it voxel
+        // after voxel; empty where M = 1, S itself then).
+        const std::array<std::vector<float>, SweepSchedule::kPatterns>& S0;
         const std::array<std::vector<float>, SweepSchedule::kPatterns>& B;
         const std::array<std::vector<float>, SweepSchedule::kPatterns>& E;   // emission
         const std::vector<double>& groundEmits;
@@ -185,11 +188,20 @@ struct CloudTransfer::Impl
     // and column, writing the mean radiance over the step to another, and the moments by a
     // second product (81 multiply-adds per voxel and column in a vectorised loop, instead of
     // inside the sweep's sequential step). Per thread: the two matrices and the harmonics.
+    //
+    // The sweeps visit voxels in the pattern's order, one column at a time, so the matrices are
+    // stored column after column (R[k n + x]) and the moment I_00 they gather goes to its own
+    // array: a sweep's reads and writes run along memory instead of striding a row (width or
+    // (K + 1)^2 floats) per voxel, which left the order-8 step waiting on memory. The products
+    // go through small row-major tiles, in the same arithmetic order: the same bits.
     struct Batch
     {
         size_t width = 0;            // columns: 2 x directions (both senses)
-        std::vector<float> R;        // n x width: sum over l >= 1 of c_lm Y_lm(column)
-        std::vector<float> Lbar;     // n x width: omega0 x the step's mean radiance
+        std::vector<float> R;        // width x n: sum over l >= 1 of c_lm Y_lm(column)
+        std::vector<float> Lbar;     // width x n: omega0 x the step's mean radiance
+        std::vector<float> G0;       // n: the group's I_00 sum (G[x M]), during the batch
+        std::vector<float> tile;     // kTile x width, row-major: a block of voxels' rows
+        static constexpr size_t kTile = 16;
         std::vector<float> Yt;       // (M - 1) x width: the harmonics l >= 1, transposed
         // Per voxel, 1 - e^-tau of the direction swept: from the first pass's forward sense,
         // for its backward sense and the wrap passes (the exponential was a third of an
