@@ -2,7 +2,7 @@
 // (GridIO, with its crash guard), then Load.h (roles, Scene, Cloud, a tiny solve, render and
 // write of small inputs).
 //
-// Run by scripts/fuzz.sh; by hand: VDBRAD_FUZZ_SEEDS=DIR build-fuzz/fuzz/fuzz_load DIR.
+// Run by scripts/fuzz.sh; by hand: VDBRAD_FUZZ_SEEDS=DIR build-hardening/fuzz/fuzz_load DIR.
 // Seeds (Seeds.h): every canonical scene and cloud at 4 and 8 voxels, an explicit surface, a
 // solved scene and cloud, and a level set, i.e. every kind of file the tool reads.
 // GridIO parses in a forked child (GridIO.h): crashes of OpenVDB's reader are reported as

@@ -7,7 +7,7 @@
 // types, grid classes, transforms (tiny, huge, NaN, non-uniform, offset), coordinates up to
 // +-2^30, NaN/Inf/negative values, active tiles, and mixtures of surface and cloud grids.
 //
-// Run by scripts/fuzz.sh; by hand: VDBRAD_FUZZ_SEEDS=DIR build-fuzz/fuzz/fuzz_scene DIR.
+// Run by scripts/fuzz.sh; by hand: VDBRAD_FUZZ_SEEDS=DIR build-hardening/fuzz/fuzz_scene DIR.
 #include "Load.h"
 #include "Seeds.h"
 
