@@ -57,6 +57,19 @@ rowTimesMatrix(const float* a, const float* b, size_t H, size_t stride, size_t w
         }
         for (size_t k = 0; k < kBlock; ++k) out[k0 + k] = acc[k];
     }
+    // A block of 8 before the scalar tail (each output's sum runs over h in the same order
+    // however the columns are blocked: the same bits).
+    constexpr size_t kHalf = kBlock / 2;
+    for (; k0 + kHalf <= w; k0 += kHalf) {
+        float acc[kHalf];
+        for (size_t k = 0; k < kHalf; ++k) acc[k] = add ? out[k0 + k] : 0.f;
+        for (size_t h = 0; h < H; ++h) {
+            const float ah = a[h];
+            const float* bh = b + h * stride + k0;
+            for (size_t k = 0; k < kHalf; ++k) acc[k] += ah * bh[k];
+        }
+        for (size_t k = 0; k < kHalf; ++k) out[k0 + k] = acc[k];
+    }
     for (size_t k = k0; k < w; ++k) {
         float acc = add ? out[k] : 0.f;
         for (size_t h = 0; h < H; ++h) acc += a[h] * b[h * stride + k];

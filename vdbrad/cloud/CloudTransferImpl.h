@@ -209,13 +209,17 @@ struct CloudTransfer::Impl
         std::vector<double> absorbed;
     };
     mutable SweepSchedule::PerThread<Batch> batches;
-    /// Directions per batch: as many as keep a thread's two matrices within kBatchBytes.
+    /// Directions per batch: as many as keep a thread's two matrices within kBatchBytes, a
+    /// multiple of 8 where that is 8 or more (16 columns: whole vector blocks in the products;
+    /// 10 directions left 4 columns to a scalar loop, which took as long as the other 16).
     static constexpr size_t kBatchBytes = size_t(64) << 20;
     static constexpr size_t kMaxBatch = 32;
     static size_t batchSize(size_t n, size_t M)
     {
         if (M == 1) return 1;
-        return std::clamp<size_t>(kBatchBytes / (std::max<size_t>(n, 1) * 2 * 2 * 4), 1, kMaxBatch);
+        const size_t fit = std::clamp<size_t>(kBatchBytes / (std::max<size_t>(n, 1) * 2 * 2 * 4),
+            1, kMaxBatch);
+        return fit >= 8 ? fit / 8 * 8 : fit;
     }
     void sweepBatch(const CloudTransfer& t, int g, const size_t* dirs, size_t count,
         Sweep& sweep) const;

@@ -18,9 +18,11 @@ namespace vdbrad {
 
 namespace {
 
-// Cost of one voxel and direction pair per sweep on one core of the CI machine
-// (docs/performance.md: 51 ns isotropic, ~120 ns at phase order 10).
-constexpr double kIsotropicSeconds = 51e-9, kPerOrderSeconds = 7e-9;
+// Cost of one voxel and direction pair per iteration (the sweeps, the update, the mixing) on
+// one core of the CI machine, from whole iterations on two (12-07): the WDAS cloud at 1/16
+// took 6.2 s isotropic (303 directions) and 25 s at phase order 8 (967); the res-64 cumulus
+// 0.38 and 1.7 s (this model: 0.32 and 1.4).
+constexpr double kIsotropicSeconds = 100e-9, kPerOrderSeconds = 4e-9;
 
 std::vector<OptionSpec>
 mediumOptions()
