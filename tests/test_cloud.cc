@@ -891,7 +891,8 @@ TEST_F(CloudTest, OneVoxelWideBoxIsThePlaneParallelSlab)
         for (int l = 0; c.mie && l < 300; ++l) problem.legendre.push_back(c1.chi(l));
         // 128 nodes integrate C.1's series exactly (test_cloud_reference.cc).
         const double exact = test::addingDoublingSlab(problem, c.mie ? 128 : 64).reflectance;
-        std::printf("plane-parallel %s g %g tau %g: albedo %.5f, exact %.5f (%+.3f %%), %d sweeps\n",
+        std::printf("plane-parallel %s g %g tau %g: albedo %.5f, exact %.5f (%+.3f %%), "
+            "%d sweeps\n",
             c.mie ? "C.1" : "HG", c.g, c.tau, transfer.budget().albedo, exact,
             100.0 * (transfer.budget().albedo / exact - 1.0), transfer.iterationCount());
         EXPECT_NEAR(transfer.budget().albedo, exact, c.tolerance * exact) << c.g << " " << c.tau;

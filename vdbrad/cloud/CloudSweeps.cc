@@ -35,9 +35,11 @@ sourceSlope(float s, const float* before, const float* after)
 
 // out[0, w) (+)= sum over h < H of a[h] b[h * stride + (0, w)]: one row of a small matrix
 // product, in blocks of 16 accumulators that stay in registers (the compiler cannot keep a
-// row it might alias with its inputs there). Compiled for AVX too, chosen at run time where the
-// CPU has it: 8 lanes instead of SSE2's 4, and the same bits (separate multiplies and adds in
-// the same order: no FMA, whose single rounding would change them).
+// row it might alias with its inputs there; columns past the last whole block go one by one,
+// which is why batches hold multiples of 8 directions, Impl::batchSize()). Compiled for AVX
+// too, chosen at run time where the CPU has it: 8 lanes instead of SSE2's 4, and the same bits
+// (separate multiplies and adds in the same order: no FMA, whose single rounding would change
+// them).
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 __attribute__((target_clones("avx", "default")))
 #endif
@@ -56,19 +58,6 @@ rowTimesMatrix(const float* a, const float* b, size_t H, size_t stride, size_t w
             for (size_t k = 0; k < kBlock; ++k) acc[k] += ah * bh[k];
         }
         for (size_t k = 0; k < kBlock; ++k) out[k0 + k] = acc[k];
-    }
-    // A block of 8 before the scalar tail (each output's sum runs over h in the same order
-    // however the columns are blocked: the same bits).
-    constexpr size_t kHalf = kBlock / 2;
-    for (; k0 + kHalf <= w; k0 += kHalf) {
-        float acc[kHalf];
-        for (size_t k = 0; k < kHalf; ++k) acc[k] = add ? out[k0 + k] : 0.f;
-        for (size_t h = 0; h < H; ++h) {
-            const float ah = a[h];
-            const float* bh = b + h * stride + k0;
-            for (size_t k = 0; k < kHalf; ++k) acc[k] += ah * bh[k];
-        }
-        for (size_t k = 0; k < kHalf; ++k) out[k0 + k] = acc[k];
     }
     for (size_t k = k0; k < w; ++k) {
         float acc = add ? out[k] : 0.f;

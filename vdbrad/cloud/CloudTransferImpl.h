@@ -211,7 +211,7 @@ struct CloudTransfer::Impl
     mutable SweepSchedule::PerThread<Batch> batches;
     /// Directions per batch: as many as keep a thread's two matrices within kBatchBytes, a
     /// multiple of 8 where that is 8 or more (16 columns: whole vector blocks in the products;
-    /// 10 directions left 4 columns to a scalar loop, which took as long as the other 16).
+    /// 10 directions left 4 columns to their scalar tail, as slow as the other 16).
     static constexpr size_t kBatchBytes = size_t(64) << 20;
     static constexpr size_t kMaxBatch = 32;
     static size_t batchSize(size_t n, size_t M)

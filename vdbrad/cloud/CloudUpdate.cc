@@ -144,8 +144,9 @@ CloudTransfer::Impl::updateSurfaces(const Sweep& sw, Change& change)
 }
 
 // What Anderson mixes: the moments of order l <= 1 (mixedMoments()) and, with periodic
-// boundaries, the light carried across the side faces (in a thin periodic slab light wraps many times, and that carry-over is then the
-// slowest mode), what the ground and the surfaces received.
+// boundaries, the light carried across the side faces (in a thin periodic slab light wraps
+// many times, and that carry-over is then the slowest mode), what the ground and the surfaces
+// received.
 std::vector<float>
 CloudTransfer::Impl::mixedState() const
 {

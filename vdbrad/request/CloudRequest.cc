@@ -112,8 +112,8 @@ iterationOptions()
             "anderson: Anderson mixing of the last --anderson-depth iterates (tens of sweeps "
             "instead of hundreds in optically thick, conservative clouds; 2 x depth + 2 copies "
             "of the moments of order <= 1); auto: anderson where the thickest column's plain "
-            "sweeps would decay slower than 1/2 per sweep (omega0 tau / (tau + 2) > 1/2, delta-M scaled), "
-            "else none"}
+            "sweeps would decay slower than 1/2 per sweep (omega0 tau / (tau + 2) > 1/2, "
+            "delta-M scaled), else none"}
             .oneOf({"auto", toString(Acceleration::None), toString(Acceleration::Anderson)}),
         options::andersonDepth(),
     };
