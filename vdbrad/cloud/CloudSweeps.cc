@@ -610,7 +610,12 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
         schedule.toPatternOrder(p, source.source, S[p], M);
         if (M > 1) {
             S0[p].resize(n);
-            for (size_t x = 0; x < n; ++x) S0[p][x] = S[p][x * M];
+            const float* from = S[p].data();
+            float* to = S0[p].data();
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
+                [&](const tbb::blocked_range<size_t>& r) {
+                    for (size_t x = r.begin(); x != r.end(); ++x) to[x] = from[x * M];
+                });
         }
         schedule.toPatternOrder(p, source.beam, B[p]);
         if (!impl.emitSource.empty()) schedule.toPatternOrder(p, impl.emitSource, E[p]);
@@ -667,7 +672,13 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     for (const std::vector<double>& part : sw.landed) {
         for (size_t c = 0; c < cells; ++c) landed[c] += part[c];
     }
+    std::vector<float> before;
+    if (impl.diffusion) {
+        before.resize(n);
+        for (size_t i = 0; i < n; ++i) before[i] = impl.moments[i * M];
+    }
     impl.eliminateSelfScattering(sum, source.isoExcess);
+    if (impl.diffusion) impl.accelerateDiffusion(sum, before);
     Impl::Change change;
     const double absorbed = impl.updateMeanRadiance(sum, change);
     const auto [onGround, directOnGround] = impl.updateGround(landed, change);

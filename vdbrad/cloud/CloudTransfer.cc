@@ -89,6 +89,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     impl.mixer = mIteration.makeMixer<float>(impl.n * impl.mixedMoments() + impl.leftFace.size()
         + impl.groundDiffuse.size() + impl.surfaceLanded.size());
     impl.setEscapeFactors(options.up);
+    impl.setDiffusion(cloud, options);
     mIteration.addSeconds(
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
@@ -342,6 +343,31 @@ CloudTransfer::Impl::setEscapeFactors(int up)
     }
 }
 
+// Diffusion synthetic acceleration (DiffusionAcceleration.h) over the medium's voxels: the
+// ground's layer and surface voxels are walls of their albedo.
+void
+CloudTransfer::Impl::setDiffusion(const Cloud& cloud, const CloudTransferOptions& options)
+{
+    if (!options.diffusion || options.phase.asymmetry() < DiffusionAcceleration::kMinAsymmetry) {
+        return;
+    }
+    std::vector<float> wall(n, DiffusionAcceleration::kMedium);
+    for (size_t i = 0; i < n; ++i) {
+        if (surfaces && surfaceOf[i] != FogSurfaces::kNone) {
+            wall[i] = surfaces->albedo(surfaceOf[i]);
+        } else if (ground && copyOf[i] == GroundLayer::kGround) {
+            wall[i] = float(groundAlbedo);
+        }
+    }
+    std::optional<openvdb::CoordBBox> period;
+    if (options.periodic) {
+        period = cloud.voxels().bbox();
+        if (ground) period->min()[options.up] += 1;   // the ground's layer is under the box
+    }
+    diffusion.reset(new DiffusionAcceleration(cloud.voxels(), kappa, omega, escape,
+        chi.size() > 1 ? chi[1] : 0.0, wall, period, options.up));
+}
+
 CloudTransfer::~CloudTransfer() = default;
 
 const DirectionSet&
@@ -455,11 +481,14 @@ CloudTransfer::memoryEstimate(const Cloud& cloud, const CloudTransferOptions& op
     perVoxel += 4 * 4;                              // kappa in each pattern's order
     perVoxel += 4 * M + 4 * M + 4;                  // moments, their source, the beam's source
     perVoxel += 4 * (4 * M + 4);                    // the sources in each pattern's order
+    if (M > 1) perVoxel += 4 * 4;                   // and their Y_00 coefficient alone
     if (!cloud.emission().isZero()) perVoxel += 4 + 4 * 4;   // emission's source, and ordered
     perVoxel += size_t(Impl::kGroups) * 4 * M;      // gathered moments per group
     perVoxel += 8 * M;                              // their double sum
     perVoxel += t * (4 + 16 + 8);                   // per thread: slots, line state, 1 - e^-tau
-    if (M > 1) perVoxel += t * 2 * 2 * 4 * Impl::batchSize(n, M);   // a batch's two matrices
+    // A batch's two matrices and its I_00 sums, per thread (its tile of 16 rows is left out).
+    if (M > 1) perVoxel += t * (2 * 2 * 4 * Impl::batchSize(n, M) + 4);
+    if (options.diffusion) perVoxel += DiffusionAcceleration::bytes(1) + 8 + 4;   // + r, before
     if (anderson) {
         const size_t mixed = Impl::mixedMoments(int(M));
         perVoxel += 8 * mixed + AndersonMixer::bytes(mixed, options.andersonDepth);   // + x, G(x)
@@ -503,10 +532,11 @@ CloudTransfer::fingerprint() const
     h = hashBytes(impl.deposited.data(), impl.deposited.size() * sizeof(double), h);
     h = hashBytes(impl.chi.data(), impl.chi.size() * sizeof(double), h);
     h = hashBytes(impl.phase.beam.data(), impl.phase.beam.size() * sizeof(float), h);
-    const int64_t options[13] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
+    const int64_t options[14] = {int64_t(directions().size()), mOptions.periodic ? 1 : 0,
         phaseOrderFor(mOptions), int64_t(*mOptions.accelerate), mOptions.andersonDepth, mOptions.up,
         impl.M, mCopies.x(), mCopies.y(), mCopies.z(), int64_t(mOptions.source),
-        mQuadratureDegree, impl.flat[0] + 2 * impl.flat[1] + 4 * impl.flat[2]};
+        mQuadratureDegree, impl.flat[0] + 2 * impl.flat[1] + 4 * impl.flat[2],
+        mOptions.diffusion ? 1 : 0};
     h = hashBytes(options, sizeof options, h);
     if (impl.ground) h = hashBytes(&impl.groundAlbedo, sizeof(double), h);
     if (impl.surfaces) h = impl.surfaces->hash(h);
@@ -696,6 +726,7 @@ CloudTransfer::describe() const
     if (mQuadratureDegree > 0) {
         os << ", weights exact for harmonics to degree " << mQuadratureDegree;
     }
+    if (mImpl->diffusion) os << ", diffusion acceleration";
     if (mOptions.accelerate == Acceleration::Anderson) os << ", Anderson acceleration";
     if (mOptions.source == VoxelSource::Constant) os << ", constant source per voxel";
     if (mImpl->ground) os << ", over a Lambertian ground of albedo " << mImpl->groundAlbedo;

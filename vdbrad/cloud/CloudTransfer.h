@@ -38,7 +38,13 @@
 // extinguished again in the voxel itself, so plain source iteration's local mode decays like
 // omega0 (1 - M_v) per sweep: ~1 - 1 / tau in an opaque conservative voxel. Each sweep solves that
 // local term exactly, J' = (J_swept - c_v J) / (1 - c_v) with c_v = omega0 (1 - M_v): the same
-// fixed point, no slow local mode (only voxel-to-voxel diffusion is left, for Anderson).
+// fixed point, no slow local mode (only voxel-to-voxel diffusion is left).
+//
+// Diffusion synthetic acceleration (DiffusionAcceleration.h, CloudTransferOptions::diffusion):
+// the voxel-to-voxel diffusion modes of a cloud many optical depths across decay like
+// 1 - O(1 / tau^2) per sweep; after the elimination, a diffusion equation over the voxels
+// solves for the error they carry, from the sweep's change of I_00, and Anderson mixes what
+// is left (the flux and the anisotropic modes).
 //
 // Energy is conserved by construction: in each voxel and direction, what a tube loses plus what
 // the voxel emits into it is what the voxel extinguishes, and the solid angles add up to 4 pi
@@ -165,6 +171,11 @@ struct CloudTransferOptions
     std::optional<Acceleration> accelerate;
     /// Anderson history length m: 2m + 2 copies of the mixed state are kept.
     int andersonDepth = 16;
+    /// Diffusion synthetic acceleration of the mean radiance (DiffusionAcceleration.h): after
+    /// each sweep a diffusion solve over the medium's voxels estimates the error its smooth
+    /// modes carry (a thick slab, tau 100: 8 iterations instead of 161), before Anderson. Not
+    /// for phase functions of asymmetry below DiffusionAcceleration::kMinAsymmetry (-0.7).
+    bool diffusion = true;
     /// The source's shape inside a voxel along each step.
     VoxelSource source = VoxelSource::Linear;
     /// Anisotropic phase: direction weights refitted to integrate harmonics exactly up to

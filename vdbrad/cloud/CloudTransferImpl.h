@@ -5,6 +5,7 @@
 
 #include "vdbrad/cloud/CloudTransfer.h"
 
+#include "vdbrad/cloud/DiffusionAcceleration.h"
 #include "vdbrad/cloud/FogSurfaces.h"
 #include "vdbrad/cloud/Ground.h"
 #include "vdbrad/cloud/HarmonicQuadrature.h"
@@ -142,6 +143,9 @@ struct CloudTransfer::Impl
     std::vector<double> chi;         // delta-M scaled Legendre coefficients, l = 0..K
     std::vector<float> moments;      // diffuse I_lm per voxel (n x M), from the last sweep
     std::unique_ptr<AndersonMixer> mixer;   // Acceleration::Anderson only
+    // Diffusion synthetic acceleration of I_00 (null: off).
+    std::unique_ptr<DiffusionAcceleration> diffusion;
+    void setDiffusion(const Cloud& cloud, const CloudTransferOptions& options);
     // The phase function on the directions: harmonics per direction and sense, their
     // quadrature means, the beam's first scattering (PhaseFunction::Tables).
     PhaseFunction::Tables phase;
@@ -249,6 +253,7 @@ struct CloudTransfer::Impl
         double max = 0.0, size = 0.0;
     };
     void eliminateSelfScattering(std::vector<double>& sum, const std::vector<double>& isoExcess);
+    void accelerateDiffusion(std::vector<double>& sum, const std::vector<float>& before);
     double updateMeanRadiance(const std::vector<double>& sum, Change& change);
     std::pair<double, double> updateGround(const std::vector<double>& landed, Change& change);
     double updateSurfaces(const Sweep& sw, Change& change);

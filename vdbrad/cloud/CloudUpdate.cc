@@ -80,6 +80,32 @@ CloudTransfer::Impl::eliminateSelfScattering(std::vector<double>& sum,
     for (size_t e = 0; e < n * M; ++e) moments[e] = float(sum[e]);
 }
 
+// Diffusion synthetic acceleration (DiffusionAcceleration.h) after the elimination: the plain
+// sweep changed I_00 by r = (1 - c_v) (I_00' - I_00) (@a before: I_00 before the sweep; the
+// elimination's I_00' is in @a sum), and the next iterate is the plain step plus the
+// diffusion's estimate of the error left, I_00 + r + delta (with its neighbours at rest a voxel
+// gets I_00' back). Kept >= 0: a negative radiance is never nearer the solution.
+void
+CloudTransfer::Impl::accelerateDiffusion(std::vector<double>& sum, const std::vector<float>& before)
+{
+    const size_t M = size_t(this->M);
+    std::vector<double> r(n), delta;
+    double change = 0.0, size = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        const double w = omega[i], m = escape[i];
+        r[i] = ((1.0 - w) + w * m) * (sum[i * M] - double(before[i]));
+        change = std::max(change, std::abs(r[i]));
+        size = std::max(size, std::abs(double(before[i]) + r[i]));
+    }
+    if (!(change > DiffusionAcceleration::kNoise * size)) return;
+    diffusion->correct(r, delta);
+    for (size_t i = 0; i < n; ++i) {
+        if (delta[i] == 0.0) continue;
+        sum[i * M] = std::max(double(before[i]) + r[i] + delta[i], 0.0);
+        moments[i * M] = float(sum[i * M]);
+    }
+}
+
 // The medium's mean radiance J from the moments, its change into @a change; returns the power
 // the medium absorbed (the beam's deposit and, per unit volume, 4 pi kappa J).
 double
