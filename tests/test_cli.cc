@@ -796,7 +796,8 @@ TEST_F(CliTest, MiePhaseFunctionsComeFromAFile)
              "--legendre-file chi.txt --g 0.5", "give one of --g, --legendre and --legendre-file"},
              {"--legendre-file beta.txt", "divide each by 2l + 1"},
              {"--legendre-file word.txt", "line 1: 'half' is not a number"},
-             {"--legendre-file absent.txt", "--legendre-file: cannot read phase file absent.txt"}}) {
+             {"--legendre-file absent.txt",
+                 "--legendre-file: cannot read phase file absent.txt"}}) {
         const Result r = sh("vdbrad solve-cloud s.vdb refused.vdb --periodic " + args);
         EXPECT_NE(r.status, 0) << args;
         EXPECT_NE(r.err.find(says), std::string::npos) << args << "\n" << r.err;

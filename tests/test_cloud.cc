@@ -517,8 +517,10 @@ TEST(DiffusionAcceleration, SolvesTheDiscreteDiffusionEquation)
             if (wall[i] != DiffusionAcceleration::kMedium || !(k > 0.0)) continue;
             unknown[i] = int(voxel.size());
             voxel.push_back(i);
-            const double tr = std::max(k, DiffusionAcceleration::kMinDepth) * (1.0 - omega[i] * chi1);
-            half.push_back(std::max(2.0 / (3.0 * tr), m < 1.0 ? 2.0 * k * m / (1.0 - m) / 6.0 : 0.0));
+            const double tr = std::max(k, DiffusionAcceleration::kMinDepth)
+                * (1.0 - omega[i] * chi1);
+            const double escaping = m < 1.0 ? 2.0 * k * m / (1.0 - m) / 6.0 : 0.0;
+            half.push_back(std::max(2.0 / (3.0 * tr), escaping));
         }
         const size_t u = voxel.size();
         std::vector<double> A(u * u, 0.0), b(u), boundary(u, 0.0);
@@ -552,7 +554,9 @@ TEST(DiffusionAcceleration, SolvesTheDiscreteDiffusionEquation)
         std::vector<double> M = A, x = b;
         for (size_t c = 0; c < u; ++c) {
             size_t p = c;
-            for (size_t r = c + 1; r < u; ++r) if (std::abs(M[r * u + c]) > std::abs(M[p * u + c])) p = r;
+            for (size_t r = c + 1; r < u; ++r) {
+                if (std::abs(M[r * u + c]) > std::abs(M[p * u + c])) p = r;
+            }
             for (size_t k = 0; k < u; ++k) std::swap(M[c * u + k], M[p * u + k]);
             std::swap(x[c], x[p]);
             for (size_t r = c + 1; r < u; ++r) {

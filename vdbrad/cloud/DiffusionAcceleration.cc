@@ -19,7 +19,8 @@ blockSum(size_t size, const F& partial)
 {
     const size_t blocks = (size + kBlock - 1) / kBlock;
     std::vector<double> sums(blocks, 0.0);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks), [&](const tbb::blocked_range<size_t>& r) {
+    using Range = tbb::blocked_range<size_t>;
+    tbb::parallel_for(Range(0, blocks), [&](const Range& r) {
         for (size_t b = r.begin(); b != r.end(); ++b) {
             sums[b] = partial(b * kBlock, std::min(size, (b + 1) * kBlock));
         }
@@ -64,7 +65,8 @@ DiffusionAcceleration::DiffusionAcceleration(const VoxelIndex& voxels,
     mCoupling.assign(count * kFaces, 0.0);
     mDiagonal.resize(count);
     mSource.resize(count);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, count), [&](const tbb::blocked_range<size_t>& r) {
+    using Range = tbb::blocked_range<size_t>;
+    tbb::parallel_for(Range(0, count), [&](const Range& r) {
         VoxelIndex::Accessor acc(voxels.tree());
         for (size_t u = r.begin(); u != r.end(); ++u) {
             const uint32_t v = mVoxel[u];
@@ -142,7 +144,6 @@ DiffusionAcceleration::correct(const std::vector<double>& residual,
         });
         if (!(pq > 0.0)) break;
         const double alpha = rz / pq;
-        double rr = 0.0;
         const double rzNext = blockSum(count, [&](size_t begin, size_t end) {
             double s = 0.0;
             for (size_t u = begin; u < end; ++u) {
@@ -153,7 +154,7 @@ DiffusionAcceleration::correct(const std::vector<double>& residual,
             }
             return s;
         });
-        rr = blockSum(count, [&](size_t begin, size_t end) {
+        const double rr = blockSum(count, [&](size_t begin, size_t end) {
             double s = 0.0;
             for (size_t u = begin; u < end; ++u) s += r[u] * r[u];
             return s;
@@ -161,7 +162,8 @@ DiffusionAcceleration::correct(const std::vector<double>& residual,
         if (rr <= kTolerance * kTolerance * bb) break;
         const double beta = rzNext / rz;
         rz = rzNext;
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, count), [&](const tbb::blocked_range<size_t>& b) {
+        using Range = tbb::blocked_range<size_t>;
+        tbb::parallel_for(Range(0, count), [&](const Range& b) {
             for (size_t u = b.begin(); u != b.end(); ++u) p[u] = z[u] + beta * p[u];
         });
     }
