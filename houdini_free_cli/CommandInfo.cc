@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <limits>
 #include <map>
@@ -19,6 +20,36 @@ namespace vdbrad {
 namespace cli {
 
 namespace {
+
+// A cloud solve's scattered-light moments (ScatteredSource.h: J_sh0, J_sh1, ...): k for a
+// grid named PREFIX_shk, else -1.
+int
+moment(const openvdb::GridBase& g, std::string& prefix)
+{
+    const std::string& name = g.getName();
+    const size_t at = name.rfind("_sh");
+    if (at == std::string::npos || at + 3 == name.size()
+        || name.find_first_not_of("0123456789", at + 3) != std::string::npos) {
+        return -1;
+    }
+    prefix = name.substr(0, at);
+    return std::atoi(name.c_str() + at + 3);
+}
+
+// The last grid of the run of moments that starts with grid @a first (PREFIX_sh0): listed as
+// one.
+size_t
+momentRun(const openvdb::GridPtrVec& grids, size_t first)
+{
+    std::string prefix, next;
+    if (moment(*grids[first], prefix) != 0) return first;
+    size_t last = first;
+    while (last + 1 < grids.size() && moment(*grids[last + 1], next) == int(last + 1 - first)
+        && next == prefix) {
+        ++last;
+    }
+    return last;
+}
 
 // The file's metadata, then one line per grid: type, class, voxels, memory, bounds.
 void
@@ -30,7 +61,18 @@ describeGrids(std::ostream& os, const std::string& label, const VdbFile& file)
            << it->second->str();
     }
     os << "\n";
-    for (const auto& g : file.grids) {
+    for (size_t i = 0; i < file.grids.size(); ++i) {
+        const auto& g = file.grids[i];
+        const size_t last = momentRun(file.grids, i);
+        if (last > i) {
+            os << "  '" << g->getName() << "' .. '" << file.grids[last]->getName() << "'  "
+               << g->valueType() << ", " << (last - i + 1) << " grids of "
+               << withCommas(g->activeVoxelCount()) << " active voxels, "
+               << formatBytes(double(g->memUsage()) * double(last - i + 1)) << ": the "
+               "scattered light's angular moments (for render)\n";
+            i = last;
+            continue;
+        }
         const openvdb::CoordBBox box = g->evalActiveVoxelBoundingBox();
         os << "  '" << g->getName() << "'  " << g->valueType() << ", "
            << openvdb::GridBase::gridClassToString(g->getGridClass()) << ", "
@@ -217,10 +259,14 @@ runInfo(const Arguments& a)
         std::cout << "\n";
     }
     std::vector<std::string> passed;
-    for (const auto& g : file.grids) {
+    for (size_t i = 0; i < file.grids.size(); ++i) {
+        const auto& g = file.grids[i];
         if (g == result) continue;
         if (!roles.uses(g) && g->getName() != names::kSpecularRadiosity) {
-            passed.push_back("'" + g->getName() + "'");
+            const size_t last = momentRun(file.grids, i);
+            passed.push_back("'" + g->getName() + "'" + (last > i ? " .. '"
+                + file.grids[last]->getName() + "'" : std::string()));
+            i = last;
         }
     }
     if (!passed.empty()) {

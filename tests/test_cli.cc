@@ -841,6 +841,56 @@ TEST_F(CliTest, DiffusionAccelerationIsOnByDefaultAndCanBeTurnedOff)
     EXPECT_FALSE(exists(path("bad.vdb")));
 }
 
+TEST_F(CliTest, SolvedCloudCarriesItsScatteredLightForTheRenderer)
+{
+    // solve-cloud writes the scattered light's moments to --source-order (at most the phase
+    // order), named after --output-name; info lists them on one line; render reads them. A file
+    // missing one of them, and bad orders or march steps, get one line and nothing written.
+    ASSERT_EQ(sh("vdbrad make cumulus c.vdb --res 12 --tau 4 --quiet").status, 0);
+    const std::string solve = "vdbrad solve-cloud c.vdb s.vdb --g 0.8 --sun 45,0 "
+        "--directions 100 --tolerance 1e-3 --phase-order 4 --quiet";
+    ASSERT_EQ(sh(solve + " --source-order 2").status, 0);
+    const VdbFile f = readVdbFile(path("s.vdb"));
+    for (int k = 0; k < 9; ++k) {
+        const auto g = findGrid(f.grids, "mean_intensity_sh" + std::to_string(k));
+        ASSERT_TRUE(g) << k;
+        EXPECT_EQ(g->activeVoxelCount(), findGrid(f.grids, "density")->activeVoxelCount());
+    }
+    EXPECT_FALSE(findGrid(f.grids, "mean_intensity_sh9"));
+    const Result info = sh("vdbrad info s.vdb");
+    ASSERT_EQ(info.status, 0) << info.err;
+    EXPECT_NE(info.out.find("'mean_intensity_sh0' .. 'mean_intensity_sh8'  float, 9 grids"),
+        std::string::npos) << info.out;
+    EXPECT_EQ(info.out.find("'mean_intensity_sh4'"), std::string::npos) << info.out;
+    const Result r = sh("vdbrad render s.vdb s.exr --res 32x24");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(r.err.find("warning"), std::string::npos) << r.err;
+    // Beyond the phase order: the phase order's moments; renamed with the output.
+    ASSERT_EQ(sh(solve + " --source-order 16 --output-name scatter").status, 0);
+    const VdbFile named = readVdbFile(path("s.vdb"));
+    EXPECT_TRUE(findGrid(named.grids, "scatter_sh24"));
+    EXPECT_FALSE(findGrid(named.grids, "scatter_sh25"));
+    // One moment gone: the render names it.
+    VdbFile broken = readVdbFile(path("s.vdb"));
+    broken.grids.erase(std::remove_if(broken.grids.begin(), broken.grids.end(),
+        [](const openvdb::GridBase::Ptr& g) { return g->getName() == "scatter_sh3"; }),
+        broken.grids.end());
+    writeVdbFile(broken, path("broken.vdb"));
+    const Result missing = sh("vdbrad render broken.vdb b.exr --res 32x24 --cloud-source scatter");
+    EXPECT_EQ(missing.status, 1);
+    EXPECT_EQ(std::count(missing.err.begin(), missing.err.end(), '\n'), 1) << missing.err;
+    EXPECT_NE(missing.err.find("'scatter_sh3' is missing"), std::string::npos) << missing.err;
+    EXPECT_FALSE(exists(path("b.exr")));
+    for (const std::string& bad : {solve + " --source-order 17",
+             std::string("vdbrad render s.vdb b.exr --cloud-step 0"),
+             std::string("vdbrad render s.vdb b.exr --cloud-step 5")}) {
+        const Result u = sh(bad);
+        EXPECT_EQ(u.status, 2) << bad;
+        EXPECT_EQ(std::count(u.err.begin(), u.err.end(), '\n'), 1) << u.err;
+        EXPECT_FALSE(exists(path("b.exr")));
+    }
+}
+
 TEST_F(CliTest, NarrowPeriodicCloudIsSolvedAsCopiesUnlessToldNot)
 {
     // A 6-wide periodic cumulus with 303 directions (auto: 9 voxels at least) is solved as

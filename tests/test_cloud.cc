@@ -1454,6 +1454,38 @@ TEST_F(CloudTest, ConservativeCloudUnderAUniformSkyIsAFurnace)
         EXPECT_DOUBLE_EQ(b.sky, 1.0);
         EXPECT_EQ(b.absorptance, 0.0);
         EXPECT_NEAR(b.balance(), 0.0, 1e-5) << g;
+        // The scattered source is L in every direction: its Y_00 coefficient sqrt(4 pi) L,
+        // the others 0 (order 4 asked; an isotropic solve has order 0 only).
+        const std::vector<float> c = transfer.scatteredSource(4);
+        const size_t width = g == 0.0 ? 1 : 25;
+        ASSERT_EQ(c.size(), cloud.size() * width) << g;
+        double y00 = 0.0, rest = 0.0;
+        for (size_t i = 0; i < cloud.size(); ++i) {
+            y00 = std::max(y00, std::abs(c[i * width] / std::sqrt(4.0 * kPi) - L));
+            for (size_t k = 1; k < width; ++k) rest = std::max(rest, double(std::abs(c[i * width + k])));
+        }
+        EXPECT_LT(y00, 1e-4 * L) << g;
+        EXPECT_LT(rest, 1e-4 * L) << g;
+    }
+}
+
+// The phase function as text (a solved file carries it for the renderer): read back, the same
+// function to the bit; anything else is refused.
+TEST(PhaseFunctionText, ReadsBackTheSameFunction)
+{
+    for (const PhaseFunction& p : {PhaseFunction(), PhaseFunction::henyeyGreenstein(0.877),
+             PhaseFunction::henyeyGreenstein(-0.3), PhaseFunction::legendre({1.0, 0.7, 0.45,
+             1.0 / 3.0, 1e-17})}) {
+        const PhaseFunction q = PhaseFunction::parse(p.text());
+        EXPECT_EQ(q.text(), p.text());
+        for (const double mu : {-1.0, -0.3, 0.0, 0.5, 0.99, 1.0}) {
+            EXPECT_EQ(q.value(mu), p.value(mu)) << p.text() << " " << mu;
+        }
+        for (int l = 0; l < 12; ++l) EXPECT_EQ(q.chi(l), p.chi(l)) << p.text() << " " << l;
+    }
+    for (const char* bad : {"", "hg", "hg 0.5 0.6", "hg 1.5", "legendre", "legendre 0.9 0.5",
+             "isotropic 1", "mie 0.8", "hg 0.5x"}) {
+        EXPECT_THROW(PhaseFunction::parse(bad), openvdb::ValueError) << bad;
     }
 }
 

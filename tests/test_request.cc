@@ -168,14 +168,20 @@ TEST(Request, CloudSolveGivesTheSolversBits)
     r.set("directions", "60");
     r.set("output-name", "scatter");
     const SolveResult result = solveClouds(grids, r);
-    ASSERT_EQ(result.grids.size(), 1u);
+    // J and its scattered source (isotropic: the Y_00 coefficient alone), named after it.
+    ASSERT_EQ(result.grids.size(), 2u);
     EXPECT_EQ(result.grids[0]->getName(), "scatter");
+    EXPECT_EQ(result.grids[1]->getName(), "scatter_sh0");
 
     const Cloud cloud = buildCloud(grids);
     CloudTransferOptions o;
     o.sunZenith = 30.0;
     o.directions = 60;
-    EXPECT_EQ(bits(result.grids[0]), bits(solveCloud(cloud, o)));
+    openvdb::GridPtrVec sources;
+    EXPECT_EQ(bits(result.grids[0]), bits(solveCloud(cloud, o, nullptr, SolveControl(), nullptr,
+        nullptr, &sources)));
+    ASSERT_EQ(sources.size(), 1u);
+    EXPECT_EQ(bits(result.grids[1]), bits(sources[0]));
 }
 
 // The time left follows the residual's trend: halving each second from 1e-2 to 1e-6 takes

@@ -77,6 +77,7 @@ CloudTransfer::CloudTransfer(const Cloud& given, const CloudTransferOptions& opt
     impl.setMedium(cloud, options, order);
     const Vec3d toSun = sunDirection(options.sunZenith, options.sunAzimuth, options.up,
         cloud.transform());
+    impl.toSun = toSun.unit();
     impl.traceBeam(cloud, options, toSun, interrupt);
     impl.setSky(options, directions, cloud.transform());
     if (!given.emission().isZero()) impl.setEmission(given, options, cloud.voxelSize());
@@ -600,26 +601,62 @@ CloudTransfer::restoreState(const SolverState& state)
 }
 
 std::vector<float>
+CloudTransfer::Impl::perGivenVoxel(const std::vector<double>& values, size_t width, size_t given,
+    const Coord& copies) const
+{
+    std::vector<float> out(given * width);
+    if (!solved) {
+        for (size_t e = 0; e < out.size(); ++e) out[e] = float(values[e] * outputScale);
+        return out;
+    }
+    std::vector<double> sum(out.size(), 0.0);
+    for (size_t i = 0; i < n; ++i) {
+        if (copyOf[i] == GroundLayer::kGround) continue;
+        for (size_t k = 0; k < width; ++k) sum[copyOf[i] * width + k] += values[i * width + k];
+    }
+    const double per = outputScale / (double(copies.x()) * double(copies.y()) * double(copies.z()));
+    for (size_t e = 0; e < out.size(); ++e) out[e] = float(sum[e] * per);
+    return out;
+}
+
+std::vector<float>
 CloudTransfer::meanIntensity() const
 {
     const Impl& impl = *mImpl;
-    const double scale = impl.outputScale;
-    std::vector<float> J(mCloud.size());
-    if (!impl.solved) {
-        for (size_t i = 0; i < J.size(); ++i) {
-            J[i] = float(double(impl.diffuseJ[i] + impl.beamJ[i]) * scale);
-        }
-        return J;
-    }
-    // The mean over a voxel's copies (every voxel has the same number of them).
-    std::vector<double> sum(J.size(), 0.0);
+    std::vector<double> J(impl.n);
+    for (size_t i = 0; i < impl.n; ++i) J[i] = double(impl.diffuseJ[i] + impl.beamJ[i]);
+    return impl.perGivenVoxel(J, 1, mCloud.size(), mCopies);
+}
+
+std::vector<float>
+CloudTransfer::scatteredSource(int order) const
+{
+    const Impl& impl = *mImpl;
+    if (order < 0) OPENVDB_THROW(openvdb::ValueError, "source order must be >= 0, got " << order);
+    const int K = std::min(order, mOptions.phaseOrder);
+    const size_t width = size_t((K + 1) * (K + 1)), M = size_t(impl.M);
+    // The coefficients the next sweep would scatter (Impl::sources(): alpha omega0' chi_l'
+    // I_lm), of the last sweep's moments: the same state as meanIntensity()'s.
+    const std::vector<float> c = impl.sources().source;
+    std::vector<double> v(impl.n * width);
     for (size_t i = 0; i < impl.n; ++i) {
-        if (impl.copyOf[i] == GroundLayer::kGround) continue;
-        sum[impl.copyOf[i]] += double(impl.diffuseJ[i] + impl.beamJ[i]);
+        for (size_t k = 0; k < width; ++k) v[i * width + k] = double(c[i * M + k]);
     }
-    const double per = scale / (double(mCopies.x()) * double(mCopies.y()) * double(mCopies.z()));
-    for (size_t i = 0; i < J.size(); ++i) J[i] = float(sum[i] * per);
-    return J;
+    return impl.perGivenVoxel(v, width, mCloud.size(), mCopies);
+}
+
+void
+CloudTransfer::recordScattering(openvdb::GridBase& grid, int order) const
+{
+    ScatteredSource s;
+    s.order = std::min(order, mOptions.phaseOrder);
+    s.phase = mOptions.phase;
+    s.deltaM = mOptions.phase.truncate(mOptions.phaseOrder).f;
+    s.toSun = mImpl->toSun;
+    s.sunIrradiance = mOptions.sunColour * mOptions.irradiance;
+    s.periodic = mOptions.periodic;
+    s.up = mOptions.up;
+    s.record(grid);
 }
 
 std::vector<float>

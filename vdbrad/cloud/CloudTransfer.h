@@ -91,6 +91,7 @@
 #pragma once
 
 #include "vdbrad/cloud/PhaseFunction.h"
+#include "vdbrad/cloud/ScatteredSource.h"
 #include "vdbrad/core/Checkpoint.h"
 #include "vdbrad/scene/Cloud.h"
 #include "vdbrad/scene/Scene.h"
@@ -291,6 +292,16 @@ public:
 
     /// Total mean radiance per medium voxel (VoxelIndex numbering), direct beam included.
     std::vector<float> meanIntensity() const;
+    /// @brief The multiple-scattered source per medium voxel: its real spherical-harmonic
+    /// coefficients c_lm, l <= min(@a order, the phase order solved), (l + 1)^2 numbers per
+    /// voxel (VoxelIndex numbering, then l^2 + l + m), so that the diffuse light a voxel
+    /// scatters towards index-space direction of travel s is sum_lm c_lm Y_lm(s) per unit of
+    /// delta-M scaled extinction; the beam's first scattering is not in it (a renderer adds it
+    /// with the full phase function: ScatteredSource.h).
+    std::vector<float> scatteredSource(int order) const;
+    /// @brief What a renderer needs beside the source's moments (ScatteredSource.h): the sun,
+    /// the phase function and its delta-M fraction, the boundaries, as metadata on @a grid.
+    void recordScattering(openvdb::GridBase& grid, int order) const;
     /// The budget of the last sweep (zero before the first).
     const CloudBudget& budget() const { return mBudget; }
 
@@ -347,16 +358,20 @@ std::unique_ptr<Cloud> uniformSlice(const Cloud& cloud, const CloudTransferOptio
 /// (medium or surfaces) or RGB surface emission is solved channel by channel: `mean_intensity`
 /// and `radiosity` are then vec3s grids (checkpoints refused, no ground grid).
 /// @throw as CloudTransfer's constructor and iterate(); as readCheckpoint(), writeCheckpoint()
+/// @a sources, if not null, gets the scatteredSource() grids up to @a sourceOrder
+/// (ScatteredSource.h: named after `mean_intensity`, which carries the metadata).
 openvdb::GridBase::Ptr solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt = nullptr,
     const SolveControl& control = SolveControl(), openvdb::FloatGrid::Ptr* ground = nullptr,
-    openvdb::GridBase::Ptr* radiosity = nullptr);
+    openvdb::GridBase::Ptr* radiosity = nullptr, openvdb::GridPtrVec* sources = nullptr,
+    int sourceOrder = ScatteredSource::kDefaultOrder);
 
 /// @brief solveCloud() given the uniformSlice() of @a cloud already built (null where there is
 /// none), for callers that planned on the slice: the neighbour scan and the copy run once.
 openvdb::GridBase::Ptr solveCloud(const Cloud& cloud, const Cloud* slice,
     const CloudTransferOptions& options, openvdb::util::NullInterrupter* interrupt,
     const SolveControl& control, openvdb::FloatGrid::Ptr* ground,
-    openvdb::GridBase::Ptr* radiosity);
+    openvdb::GridBase::Ptr* radiosity, openvdb::GridPtrVec* sources = nullptr,
+    int sourceOrder = ScatteredSource::kDefaultOrder);
 
 } // namespace vdbrad

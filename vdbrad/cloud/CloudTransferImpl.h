@@ -134,6 +134,11 @@ struct CloudTransfer::Impl
     void setSky(const CloudTransferOptions& options, const DirectionSet& directions,
         const openvdb::math::Transform& transform);
     double outputScale = 1.0;        // F0 / the internal irradiance: a power of two
+    openvdb::Vec3d toSun{0.0, 1.0, 0.0};   // unit, index space
+    // Per voxel of the given cloud, @a width numbers from the medium solved's (n x width): the
+    // mean over the voxel's copies (each has the same number), times the output scale.
+    std::vector<float> perGivenVoxel(const std::vector<double>& values, size_t width,
+        size_t given, const openvdb::Coord& copies) const;
     std::vector<float> diffuseJ;     // diffuse mean radiance of the last sweep
     // Mean escape factor M_v per voxel: Y_00^2 sum_{directions, senses} Omega f(tau), from the
     // sweeps' own float factors; 1 - omega0 (1 - M_v) is what iterate() divides I_00 by.

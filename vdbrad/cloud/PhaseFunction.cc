@@ -91,6 +91,37 @@ PhaseFunction::readLegendre(const std::string& path)
     }
 }
 
+std::string
+PhaseFunction::text() const
+{
+    std::ostringstream os;
+    os.precision(17);
+    if (mHg) {
+        os << "hg " << mG;
+    } else if (isIsotropic()) {
+        os << "isotropic";
+    } else {
+        os << "legendre";
+        for (const double c : mChi) os << ' ' << c;
+    }
+    return os.str();
+}
+
+PhaseFunction
+PhaseFunction::parse(const std::string& text)
+{
+    std::istringstream in(text);
+    std::string kind;
+    in >> kind;
+    std::vector<double> numbers;
+    for (double v; in >> v;) numbers.push_back(v);
+    const bool clean = in.eof();
+    if (clean && kind == "isotropic" && numbers.empty()) return PhaseFunction();
+    if (clean && kind == "hg" && numbers.size() == 1) return henyeyGreenstein(numbers[0]);
+    if (clean && kind == "legendre" && !numbers.empty()) return legendre(std::move(numbers));
+    OPENVDB_THROW(openvdb::ValueError, "not a phase function: '" << text.substr(0, 60) << "'");
+}
+
 double
 PhaseFunction::chi(int l) const
 {

@@ -56,6 +56,13 @@ public:
     double asymmetry() const { return chi(1); }
     bool isIsotropic() const { return !mHg && mChi.size() == 1; }
 
+    /// @brief The phase function as one line of text that parse() reads back to the same
+    /// function, bit for bit: "isotropic", "hg G" or "legendre chi_0 chi_1 ..." (a solved
+    /// cloud's file carries it for the renderer's single scattering).
+    std::string text() const;
+    /// @throw openvdb::ValueError if @a text is not what text() writes
+    static PhaseFunction parse(const std::string& text);
+
     /// The delta-M truncation at order K: the fraction f = chi_{K+1} moved forward, and the
     /// scaled coefficients chi_l', l = 0..K. K = 0 gives isotropic scattering with the
     /// transport correction f = g (the classical similarity scaling).

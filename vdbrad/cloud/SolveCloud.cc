@@ -45,10 +45,25 @@ statsOf(const CloudTransfer& transfer)
 
 // Colours (an RGB albedo of the medium or of the surfaces, RGB lamps): light of each colour
 // travels alone, so each channel is its own transfer (the medium's work three times over).
+// The scatteredSource() coefficient grids of @a J, from (n x width) values per channel.
+template<typename ValueT>
+openvdb::GridPtrVec
+sourceGrids(const Cloud& cloud, const std::vector<ValueT>& c, size_t width, const std::string& J)
+{
+    openvdb::GridPtrVec grids;
+    std::vector<ValueT> v(cloud.size());
+    for (size_t k = 0; k < width; ++k) {
+        for (size_t i = 0; i < v.size(); ++i) v[i] = c[i * width + k];
+        grids.push_back(arrayToGrid(cloud.voxels(), v, cloud.transform(),
+            ScatteredSource::gridName(J, int(k))));
+    }
+    return grids;
+}
+
 openvdb::GridBase::Ptr
 solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
-    openvdb::GridBase::Ptr* radiosity)
+    openvdb::GridBase::Ptr* radiosity, openvdb::GridPtrVec* sources, int sourceOrder)
 {
     if (!control.checkpoint.empty() || !control.resume.empty()) {
         OPENVDB_THROW(openvdb::ValueError, "checkpoints are not supported for an RGB cloud or "
@@ -59,10 +74,14 @@ solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::Vec3f albedo, transmittance, absorptance;
     SolveStats stats;
     double residual = 0.0;
+    std::vector<openvdb::Vec3f> moments;
+    size_t width = 0;
+    std::optional<CloudTransfer> last;   // the blue channel's: the scattering's metadata
     for (int c = 0; c < 3; ++c) {
         CloudTransferOptions o = options;
         o.channel = c;
-        CloudTransfer transfer(cloud, o, interrupt);
+        last.reset();
+        CloudTransfer& transfer = last.emplace(cloud, o, interrupt);
         iterateFramed(transfer, control, interrupt);
         const CloudBudget& b = transfer.budget();
         if (control.note) control.note("channel " + std::string(1, "rgb"[c]) + ": " + budgetLine(b, o));
@@ -70,6 +89,12 @@ solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
         const std::vector<float> r = scene ? transfer.surfaceRadiosity() : std::vector<float>();
         for (size_t i = 0; i < J.size(); ++i) J[i][c] = j[i];
         for (size_t v = 0; v < B.size(); ++v) B[v][c] = r[v];
+        if (sources) {
+            const std::vector<float> m = transfer.scatteredSource(sourceOrder);
+            moments.resize(m.size());
+            width = m.size() / cloud.size();
+            for (size_t e = 0; e < m.size(); ++e) moments[e][c] = m[e];
+        }
         albedo[c] = float(b.albedo);
         transmittance[c] = float(b.transmittance);
         absorptance[c] = float(b.absorptance);
@@ -94,6 +119,10 @@ solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
     g->insertMeta(meta::kDirections, openvdb::Int32Metadata(stats.directions));
     g->insertMeta(meta::kSeconds, openvdb::FloatMetadata(float(stats.seconds)));
     g->insertMeta(meta::kVersion, openvdb::StringMetadata(VDBRAD_VERSION_STRING));
+    if (sources) {
+        last->recordScattering(*g, sourceOrder);
+        *sources = sourceGrids(cloud, moments, width, g->getName());
+    }
     return g;
 }
 
@@ -156,17 +185,24 @@ uniformSlice(const Cloud& cloud, const CloudTransferOptions& options)
 openvdb::GridBase::Ptr
 solveCloud(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
-    openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity)
+    openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity,
+    openvdb::GridPtrVec* sources, int sourceOrder)
 {
     const std::unique_ptr<Cloud> slice = uniformSlice(cloud, options);
-    return solveCloud(cloud, slice.get(), options, interrupt, control, ground, radiosity);
+    return solveCloud(cloud, slice.get(), options, interrupt, control, ground, radiosity,
+        sources, sourceOrder);
 }
 
 openvdb::GridBase::Ptr
 solveCloud(const Cloud& cloud, const Cloud* slice, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,
-    openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity)
+    openvdb::FloatGrid::Ptr* ground, openvdb::GridBase::Ptr* radiosity,
+    openvdb::GridPtrVec* sources, int sourceOrder)
 {
+    if (sources && !(sourceOrder >= 0 && sourceOrder <= ScatteredSource::kMaxOrder)) {
+        OPENVDB_THROW(openvdb::ValueError, "the scattered source's order must be in [0, "
+            << ScatteredSource::kMaxOrder << "], got " << sourceOrder);
+    }
     if (slice) {
         const openvdb::CoordBBox box = cloud.voxels().bbox();
         std::array<bool, 3> axes{};
@@ -174,16 +210,20 @@ solveCloud(const Cloud& cloud, const Cloud* slice, const CloudTransferOptions& o
             axes[size_t(k)] = slice->voxels().bbox().dim()[k] < box.dim()[k];
         }
         openvdb::GridBase::Ptr J = solveCloud(*slice, options, interrupt, control, ground,
-            radiosity);
+            radiosity, sources, sourceOrder);
         if (ground && *ground) {
             // The ground's layer lies under the box, one voxel below it along the vertical.
             *ground = openvdb::gridPtrCast<openvdb::FloatGrid>(extendedGrid(*ground, box, axes));
+        }
+        if (sources) {
+            for (openvdb::GridBase::Ptr& g : *sources) g = extendedGrid(g, box, axes);
         }
         return extendedGrid(J, box, axes);
     }
     if (isRgb(cloud, options)) {
         if (ground) ground->reset();
-        return solveCloudRgb(cloud, options, interrupt, control, radiosity);
+        return solveCloudRgb(cloud, options, interrupt, control, radiosity, sources,
+            sourceOrder);
     }
     CloudTransfer transfer(cloud, options, interrupt);
     iterateFramed(transfer, control, interrupt);
@@ -196,7 +236,14 @@ solveCloud(const Cloud& cloud, const Cloud* slice, const CloudTransferOptions& o
                 statsOf(transfer));
         }
     }
-    return transfer.grid();
+    openvdb::GridBase::Ptr J = transfer.grid();
+    if (sources) {
+        transfer.recordScattering(*J, sourceOrder);
+        const std::vector<float> c = transfer.scatteredSource(sourceOrder);
+        *sources = sourceGrids(cloud, c, c.size() / std::max<size_t>(1, cloud.size()),
+            J->getName());
+    }
+    return J;
 }
 
 } // namespace vdbrad

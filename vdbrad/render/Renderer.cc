@@ -1,5 +1,7 @@
 #include "vdbrad/render/Renderer.h"
 
+#include "vdbrad/render/CloudShading.h"
+
 #include "vdbrad/core/Constants.h"
 #include "vdbrad/core/SampleHash.h"
 #include "vdbrad/glossy/Brdf.h"
@@ -312,21 +314,11 @@ struct Renderer::Tracer
     }
 
     // Emission and absorption through the cloud along [t0, t1] (world distances): adds the
-    // in-scattered light to L and multiplies T by the transmittance.
+    // light it sends towards the eye to L and multiplies T by the transmittance.
     void throughCloud(const Vec3d& eye, const Vec3d& dir, double t0, double t1, Vec3d& L,
-        double& T)
+        Vec3d& T)
     {
-        const Cloud& cloud = mR.mCloud;
-        const Attribute& source = mR.mSource;
-        const bool emits = mR.mCloudEmits;
-        const IndexRay ir = toIndex(cloud.transform(), eye, dir);
-        marchVoxels(*mCloud, mR.mCloudBox, ir.origin + Vec3d(0.5), ir.dir, t0, t1,
-            [&](int32_t index, double tIn, double tOut) {
-                const double x = double(cloud.extinction(size_t(index))) * (tOut - tIn);
-                if (emits) L += Vec3d(source.rgb(size_t(index))) * (T * -std::expm1(-x));
-                T *= std::exp(-x);
-                return T >= kOpaque;
-            });
+        mR.mShading->march(*mCloud, eye, dir, t0, t1, L, T, kOpaque);
     }
 
     // The ground under a cloud (the cloud solver's `ground_irradiance`), seen from above on the
@@ -359,15 +351,17 @@ struct Renderer::Tracer
         Vec3f surface(0.f);
         const bool hit = (mR.mHasSurface && hitSurface(eye, dir, t0, t1, tHit, surface))
             || (mR.mGround && hitGround(eye, dir, t0, t1, tHit, surface));
-        Vec3d L(0.0);
-        double T = 1.0;
+        Vec3d L(0.0), T(1.0);
         if (mR.mHasCloud) throughCloud(eye, dir, t0, hit ? tHit : t1, L, T);
-        if (T < kOpaque) T = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            if (T[c] < kOpaque) T[c] = 0.0;
+        }
         const Vec3f behind = hit ? surface
             : mR.mOptions.sky.empty() ? mR.mOptions.background
                                       : Vec3f(mR.mOptions.sky.radiance(dir) * kPi);
-        coverage = hit ? 1.f : float(1.0 - T);
-        return Vec3f(L + Vec3d(behind) * T);
+        coverage = hit ? 1.f : float(1.0 - (T[0] + T[1] + T[2]) / 3.0);
+        const Vec3d b(behind);
+        return Vec3f(L + Vec3d(b[0] * T[0], b[1] * T[1], b[2] * T[2]));
     }
 
     const Renderer& mR;
@@ -435,6 +429,7 @@ Renderer::Renderer(const openvdb::GridPtrVec& grids, const RenderOptions& option
     mUp = mRight.cross(mForward);
     mTanHalf = std::tan(0.5 * mCamera.fov * M_PI / 180.0);
     mAspect = aspect;
+    if (mShading) mShading->aim(mCamera.eye, interrupt);
 }
 
 Renderer::~Renderer() = default;
@@ -533,37 +528,13 @@ Renderer::setCloud(const openvdb::GridPtrVec& grids, openvdb::util::NullInterrup
             OPENVDB_THROW(openvdb::ValueError, "cloud source '" << mOptions.cloudSource
                 << "' is not on the transform of '" << mOptions.cloud.density << "'");
         }
-        const Attribute j = Attribute::sample(*J, mCloud.voxels(), mOptions.cloudSource, 0.f);
-        const Attribute& albedo = mCloud.albedo();
-        // What the medium sends towards the eye per unit of extinction: albedo x J, and
-        // its own emission, epsilon / sigma_t (Cloud.h); times pi, as pixels hold radiosity
-        // (pi x radiance) everywhere: a conservative cloud in a uniform sky then vanishes into
-        // the background (pi L), and a ground (rho E) shows beside it in the same units.
-        const Attribute& emission = mCloud.emission();
-        auto emitted = [&](size_t i) {
-            return mCloud.extinction(i) > 0.f ? emission.rgb(i) / mCloud.extinction(i)
-                                              : Vec3f(0.f);
-        };
-        const float pi = float(kPi);
-        const size_t n = mCloud.size();
-        if (j.isRgb() || albedo.isRgb() || emission.isRgb()) {
-            std::vector<Vec3f> s(n);
-            for (size_t i = 0; i < n; ++i) {
-                const Vec3f a = albedo.rgb(i), v = j.rgb(i);
-                s[i] = (Vec3f(a[0] * v[0], a[1] * v[1], a[2] * v[2]) + emitted(i)) * pi;
-            }
-            mSource = Attribute::fromRgb(std::move(s));
-        } else {
-            std::vector<float> s(n);
-            for (size_t i = 0; i < n; ++i) s[i] = (albedo.grey(i) * j.grey(i) + emitted(i)[0]) * pi;
-            mSource = Attribute::fromGrey(std::move(s));
-        }
     } else {
         mWarnings.push_back("cloud '" + mOptions.cloud.density + "' has no source grid '"
             + mOptions.cloudSource + "': rendered absorbing only (solve the cloud first)");
     }
+    mShading.reset(new CloudShading(mCloud, J, grids, mOptions.cloudStep,
+        mOptions.cloudSourceOrder, interrupt));
     mHasCloud = true;
-    mCloudEmits = !mSource.isZero();
     mCloudBox = mCloud.voxels().bbox();
     openvdb::BBoxd b = worldBoundsOf(mCloudBox, mCloud.transform());
     // A ground under the cloud (CloudTransfer::groundGrid): a float grid one voxel thick,

@@ -45,6 +45,7 @@
 
 namespace vdbrad {
 
+class CloudShading;
 class FinalGather;
 
 /// A pinhole camera in world space.
@@ -93,6 +94,12 @@ struct RenderOptions
     /// Name of the cloud's source grid J (float or Vec3f, mean radiance over directions, as the
     /// cloud solver writes it). Missing: the cloud only absorbs (see Image::warnings).
     std::string cloudSource = "mean_intensity";
+    /// Clouds: voxels per step of the ray march through the trilinear fields (CloudShading.h),
+    /// in (0, 4].
+    double cloudStep = 0.5;
+    /// Clouds: the highest order of the solved scattered light's moments used (at most what
+    /// the file has; -1: all of them).
+    int cloudSourceOrder = -1;
 };
 
 /// A linear RGB image.
@@ -198,8 +205,7 @@ private:
     std::unique_ptr<LevelSetShared> mLevelSetShared;
     std::unique_ptr<MeshShared> mMesh;
     Cloud mCloud;
-    Attribute mSource;                       // omega0 J per cloud voxel; Uniform 0: absorb only
-    bool mCloudEmits = false;                // mSource is not zero everywhere
+    std::unique_ptr<CloudShading> mShading;  // the cloud's fields and source towards the eye
     // The ground under the cloud, if the file has one (its irradiance E; drawn as rho E).
     openvdb::FloatGrid::ConstPtr mGround;
     float mGroundAlbedo = 0.f;

@@ -56,6 +56,12 @@ mediumOptions()
             "0 to 32; (order + 1)^2 floats per voxel; auto: 8 (the beam's first "
             "scattering keeps the whole phase function; slabs g 0.85-0.9 within 0.25 % "
             "of adding-doubling)"},
+        OptionSpec{"source-order", OptionType::Int, "4", "8",
+            "harmonic order of the scattered light's angular moments written for `render` "
+            "(grids NAME_sh0, NAME_sh1, ...: (order + 1)^2 of them, at most the phase "
+            "order): the picture shows the light the solve found in the camera's "
+            "direction, and the sun's first scattering with the whole phase function"}
+            .within(0, ScatteredSource::kMaxOrder),
         OptionSpec{"voxel-source", OptionType::String, "linear", "constant",
             "the scattered light's shape inside a voxel along each line step: linear "
             "(its slope from the voxels before and after: right in voxels of optical "
@@ -307,10 +313,16 @@ CloudSolve::plan()
     // What the transfer solves: a periodic box uniform along an axis, one voxel deep.
     mSlice = uniformSlice(mCloud, mOptions);
     const Cloud& solved = mSlice ? *mSlice : mCloud;
+    const int order = CloudTransfer::phaseOrderFor(mOptions);
     p.solverBytes = double(CloudTransfer::memoryEstimate(solved, mOptions, threads));
+    // The scattered source's moments after the solve (CloudTransfer::scatteredSource(): all
+    // M coefficients, then W of them in double, float and grids).
+    const double M = double((order + 1) * (order + 1));
+    const int written = std::min(order, mRequest.getInt("source-order"));
+    const double W = double((written + 1) * (written + 1));
+    p.solverBytes += double(solved.size()) * (4.0 * M + 24.0) + double(mCloud.size()) * 17.0 * W;
     p.maxIterations = mOptions.maxIterations;
     p.directions = int(DirectionSet::fromCount(CloudTransfer::directionCount(mOptions)).size());
-    const int order = CloudTransfer::phaseOrderFor(mOptions);
     const int share = mRanks ? mRanks->ranks() : 1;
     p.secondsPerIteration = (kIsotropicSeconds + kPerOrderSeconds * order)
         * double(solved.size() + mScene.size()) * double(p.directions)
@@ -329,14 +341,19 @@ CloudSolve::run(openvdb::util::NullInterrupter* interrupt, SolveControl control)
     control = reportingInto(result, std::move(control), mRequest, mRanks);
     openvdb::FloatGrid::Ptr ground;
     openvdb::GridBase::Ptr radiosity;
+    openvdb::GridPtrVec sources;
     const openvdb::GridBase::Ptr intensity = solveCloud(mCloud, mSlice.get(), mOptions,
-        interrupt, control, &ground, &radiosity);
+        interrupt, control, &ground, &radiosity, &sources, mRequest.getInt("source-order"));
     intensity->setName(mRequest.getString("output-name"));
+    for (size_t k = 0; k < sources.size(); ++k) {
+        sources[k]->setName(ScatteredSource::gridName(intensity->getName(), int(k)));
+    }
     recordEmission(*intensity, mCloud, mCloudOptions);
     recordLight(mRequest, *intensity);
     result.grids.push_back(intensity);
     if (ground) result.grids.push_back(ground);
     if (radiosity) result.grids.push_back(radiosity);
+    result.grids.insert(result.grids.end(), sources.begin(), sources.end());
     result.warnings = mWarnings;
     result.plan = mPlan;
     return result;

@@ -47,7 +47,16 @@ renderImageOptions()
             "clouds: multiplies the density grid, as for the cloud solve"}.above(0),
         options::density(),
         {"cloud-source", OptionType::String, "mean_intensity", "scatter",
-            "clouds: the grid of mean radiance J; the source is albedo x J"},
+            "clouds: the grid of mean radiance J; a solve's file also has its scattered "
+            "light's moments (J_sh0, ...) and its sun, and the source is then the light in "
+            "the camera's direction (else albedo x J)"},
+        OptionSpec{"cloud-step", OptionType::Float, "0.5", "0.25",
+            "clouds: voxels per step of the ray march through the trilinearly "
+            "interpolated density and source"}.above(0).atMost(4),
+        OptionSpec{"cloud-source-order", OptionType::Int, "-1", "2",
+            "clouds: use the solve's scattered-light moments up to this harmonic order "
+            "(at most what the file has; fewer: faster, smoother in angle); -1: all"}
+            .within(-1, 16),
     });
     return table;
 }
@@ -93,6 +102,8 @@ readRenderRequest(const Request& r)
     o.cloud.extinctionScale = float(r.getFloat("extinction-scale"));
     o.cloud.density = r.getString("density");
     o.cloudSource = r.getString("cloud-source");
+    o.cloudStep = r.getFloat("cloud-step");
+    o.cloudSourceOrder = r.getInt("cloud-source-order");
     q.pixel = r.choice<ExrPixel>("exr-type", {{"half", ExrPixel::Half}, {"float", ExrPixel::Float}});
     q.tone.exposureStops = r.getFloat("exposure");
     q.png = r.getString("png");

@@ -470,8 +470,8 @@ stoppedShort(const SolveResult& result, const Request& request)
     if (result.converged) return "";
     std::ostringstream os;
     os << "stopped at " << request.spell("iterations") << " " << result.plan.maxIterations
-       << " with residual " << std::to_string(result.residual) << " > "
-       << request.spell("tolerance");
+       << " with residual " << result.residual << " > " << request.spell("tolerance") << " "
+       << request.getString("tolerance");
     return os.str();
 }
 
