@@ -4,6 +4,7 @@
 // a homogeneous cloud, the default camera, EXR and PNG bytes, and the errors users meet.
 #include "grids/CanonicalGrids.h"
 #include "vdbrad/mesh/MeshTracer.h"
+#include "vdbrad/render/CloudShading.h"
 #include "vdbrad/render/ImageIO.h"
 #include "vdbrad/render/Renderer.h"
 #include "vdbrad/vdbrad.h"
@@ -981,6 +982,46 @@ TEST_F(RenderTest, SolvedConservativeCloudVanishesIntoItsUniformSky)
             const Image fewer = renderImage(grids, ro);
             for (const Vec3f& v : fewer.pixels) ASSERT_NEAR(v[0], kPi * L, 1e-4 * kPi * L);
         }
+    }
+}
+
+TEST_F(RenderTest, SurfacesShadeTheCloudsSingleScattering)
+{
+    // A fog slab (16 x 2 x 16 voxels) under a high sun, a plane of surface voxels four voxels
+    // above its half x <= 7 (a fog solved inside a scene: the renderer gets the scene's voxels
+    // as blockers): no sun reaches the shaded half; the other half keeps the transmittance of
+    // the fog above each centre, as without the plane (where the shadow rays pass beside it).
+    const double vs = 0.1;
+    auto density = openvdb::FloatGrid::create(0.f);
+    density->setName("density");
+    density->setGridClass(openvdb::GRID_FOG_VOLUME);
+    density->setTransform(openvdb::math::Transform::createLinearTransform(vs));
+    density->denseFill(openvdb::CoordBBox(Coord(0, 0, 0), Coord(15, 1, 15)), 2.f, true);
+    const Cloud cloud = buildCloud({density});
+    auto J = density->deepCopy();
+    J->setName("mean_intensity");
+    auto moment = density->deepCopy();
+    moment->setName(ScatteredSource::gridName("mean_intensity", 0));
+    moment->denseFill(openvdb::CoordBBox(Coord(0, 0, 0), Coord(15, 1, 15)), 0.f, true);
+    ScatteredSource light;
+    light.toSun = Vec3d(0.0, 1.0, 0.0);
+    light.sunIrradiance = Vec3d(1.0);
+    light.record(*J);
+    openvdb::MaskTree plane;
+    for (int x = 0; x <= 7; ++x) {
+        for (int z = -2; z <= 17; ++z) plane.setValueOn(Coord(x, 6, z));
+    }
+    const VoxelIndex blockers(plane);
+    const CloudShading unshaded(cloud, J, {density, J, moment});
+    const CloudShading shaded(cloud, J, {density, J, moment}, 0.5, -1, &blockers);
+    for (size_t i = 0; i < cloud.size(); ++i) {
+        const Coord c = cloud.voxels().coord(i);
+        // Above a centre of layer y: the rest of its voxel and the layer above, with the
+        // interpolated density fading over one voxel beyond the last centre.
+        const double depth = 2.0 * vs * (c.y() == 1 ? 0.5 : 1.5);
+        EXPECT_NEAR(unshaded.sunTransmittance()[i][0], std::exp(-depth), 1e-6) << c;
+        EXPECT_EQ(shaded.sunTransmittance()[i][0],
+            c.x() <= 7 ? 0.f : unshaded.sunTransmittance()[i][0]) << c;
     }
 }
 

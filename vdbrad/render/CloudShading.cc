@@ -13,6 +13,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace vdbrad {
 
@@ -35,7 +36,7 @@ stepsOver(double length, double step)
 } // namespace
 
 CloudShading::CloudShading(const Cloud& cloud, const openvdb::GridBase::ConstPtr& J,
-    const openvdb::GridPtrVec& grids, double step, int maxOrder,
+    const openvdb::GridPtrVec& grids, double step, int maxOrder, const VoxelIndex* blockers,
     openvdb::util::NullInterrupter* interrupt)
     : mCloud(cloud), mStep(step)
 {
@@ -71,7 +72,7 @@ CloudShading::CloudShading(const Cloud& cloud, const openvdb::GridBase::ConstPtr
         for (int c = 0; c < 3; ++c) mSigma[i][c] = float(s * (1.0 - double(a[c]) * f));
     }
     mSunT.assign(n, Vec3f(1.f));
-    if (mScattering && mScattering->sunIrradiance.length() > 0.0) traceShadows(interrupt);
+    if (mScattering && mScattering->sunIrradiance.length() > 0.0) traceShadows(blockers, interrupt);
 }
 
 // The fields at the eight voxel centres around a dual cell (the cube between them whose
@@ -124,11 +125,11 @@ constexpr double kGaussLo = 0.5 - 0.28867513459481287, kGaussHi = 0.5 + 0.288675
 
 // Along p(t) = o + d t, t in [ta, tb], through the dual cells (a 3D DDA over the lattice of
 // voxel centres): @a segment(cell, base, t0, t1) for each piece of the ray inside a cell whose
-// corners are not all empty, in order, until it returns false.
+// corners are not all empty (@a empty: every cell), in order, until it returns false.
 template<bool Wrap, typename SegmentF>
 void
 CloudShading::walk(Accessor& acc, const Vec3d& o, const Vec3d& d, double ta, double tb,
-    bool emit, SegmentF&& segment) const
+    bool emit, bool empty, SegmentF&& segment) const
 {
     if (!(tb > ta)) return;
     const Vec3d start = o + d * ta;
@@ -158,7 +159,7 @@ CloudShading::walk(Accessor& acc, const Vec3d& o, const Vec3d& d, double ta, dou
         const int k = tNext[0] < tNext[1] ? (tNext[0] < tNext[2] ? 0 : 2)
                                           : (tNext[1] < tNext[2] ? 1 : 2);
         const double t1 = std::min(tNext[k], tb);
-        if (t1 > t && loadCell<Wrap>(acc, base, cell, emit)) {
+        if (t1 > t && (loadCell<Wrap>(acc, base, cell, emit) || empty)) {
             if (!segment(cell, base, t, t1)) return;
         }
         t = t1;
@@ -171,19 +172,29 @@ CloudShading::walk(Accessor& acc, const Vec3d& o, const Vec3d& d, double ta, dou
 // midpoint steps until the ray leaves the box's trilinear support (a periodic box: through
 // its top only).
 void
-CloudShading::traceShadows(openvdb::util::NullInterrupter* interrupt)
+CloudShading::traceShadows(const VoxelIndex* blockers, openvdb::util::NullInterrupter* interrupt)
 {
     const ScatteredSource& s = *mScattering;
     const Vec3d dir = s.toSun;
     const double h = mCloud.voxelSize();   // world units per index unit (the cloud's voxels
                                            // are cubes: Cloud.h)
-    const Vec3d lo = mBox.min().asVec3d() - Vec3d(1.0), hi = mBox.max().asVec3d() + Vec3d(1.0);
+    // The ray ends where it leaves the medium's trilinear support, or the blockers' cubes.
+    openvdb::CoordBBox box = mBox;
+    if (blockers && blockers->size() > 0) box.expand(blockers->bbox());
+    const Vec3d lo = box.min().asVec3d() - Vec3d(1.0), hi = box.max().asVec3d() + Vec3d(1.0);
     std::atomic<bool> stop{false};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, mCloud.size()),
         [&](const tbb::blocked_range<size_t>& r) {
             if (stop) return;
             if (openvdb::util::wasInterrupted(interrupt)) { stop = true; return; }
             Accessor acc(mCloud.voxels().tree());
+            std::optional<Accessor> block;
+            if (blockers) block.emplace(blockers->tree());
+            // A blocker's cube at index point p (voxel cubes are centred on integers).
+            auto blocked = [&](const Vec3d& p) {
+                return block && block->getValue(Coord{int32_t(std::floor(p[0] + 0.5)),
+                    int32_t(std::floor(p[1] + 0.5)), int32_t(std::floor(p[2] + 0.5))}) >= 0;
+            };
             for (size_t i = r.begin(); i != r.end(); ++i) {
                 const Vec3d o = mCloud.voxels().coord(i).asVec3d();
                 // Where the ray leaves the support: along the axes it can leave by.
@@ -197,13 +208,19 @@ CloudShading::traceShadows(openvdb::util::NullInterrupter* interrupt)
                 Vec3d depth(0.0);
                 auto add = [&](const Cell& cell, const Coord& base, double t0, double t1) {
                     const Vec3d b = base.asVec3d();
-                    const Vec3d s0 = trilinear(cell.sigma, o + dir * (t0 + (t1 - t0) * kGaussLo) - b);
-                    const Vec3d s1 = trilinear(cell.sigma, o + dir * (t0 + (t1 - t0) * kGaussHi) - b);
+                    const Vec3d p0 = o + dir * (t0 + (t1 - t0) * kGaussLo);
+                    const Vec3d p1 = o + dir * (t0 + (t1 - t0) * kGaussHi);
+                    if (blocked(p0) || blocked(p1)) {
+                        depth = Vec3d(std::numeric_limits<double>::infinity());
+                        return false;
+                    }
+                    const Vec3d s0 = trilinear(cell.sigma, p0 - b), s1 = trilinear(cell.sigma, p1 - b);
                     depth += (s0 + s1) * (0.5 * (t1 - t0) * h);
                     return std::min({depth[0], depth[1], depth[2]}) < -std::log(kShadowOpaque);
                 };
-                if (s.periodic) walk<true>(acc, o, dir, 0.0, tMax, false, add);
-                else walk<false>(acc, o, dir, 0.0, tMax, false, add);
+                // With blockers every cell is visited (one may lie where the medium is not).
+                if (s.periodic) walk<true>(acc, o, dir, 0.0, tMax, false, bool(block), add);
+                else walk<false>(acc, o, dir, 0.0, tMax, false, bool(block), add);
                 for (int c = 0; c < 3; ++c) mSunT[i][c] = float(std::exp(-depth[c]));
             }
         });
@@ -286,7 +303,7 @@ CloudShading::march(Accessor& acc, const Vec3d& eye, const Vec3d& dir, double t0
     // mean emission density exactly (two Gauss points: the fields are cubic along the ray),
     // and the exact exponential for a source constant over the step.
     const double perWorld = d.length();   // index units per world unit
-    walk<false>(acc, o, d, ta, tb, mEmits,
+    walk<false>(acc, o, d, ta, tb, mEmits, false,
         [&](const Cell& cell, const Coord& base, double t0, double t1) {
             const Vec3d b = base.asVec3d();
             const int steps = stepsOver((t1 - t0) * perWorld, mStep);

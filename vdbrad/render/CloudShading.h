@@ -48,12 +48,15 @@ public:
     /// in @a grids, and march the shadow rays.
     /// @param step      voxels per march step, in (0, 4]
     /// @param maxOrder  the highest order of the moments used (-1: all the file has)
+    /// @param blockers  if not null, voxels on the cloud's transform that stop the sun's light
+    ///                  (the surfaces of a fog solved inside a scene: FogSurfaces.h); not
+    ///                  copied
     /// @throw openvdb::ValueError for a bad step or broken scattering metadata
     ///        (ScatteredSource::read()); openvdb::TypeError for J not float or vec3s
     /// @throw vdbrad::Cancelled if @a interrupt asks to stop
     CloudShading(const Cloud& cloud, const openvdb::GridBase::ConstPtr& J,
         const openvdb::GridPtrVec& grids, double step = kDefaultStep, int maxOrder = -1,
-        openvdb::util::NullInterrupter* interrupt = nullptr);
+        const VoxelIndex* blockers = nullptr, openvdb::util::NullInterrupter* interrupt = nullptr);
 
     /// @brief Evaluate each voxel's source towards the world point @a eye (march() needs it).
     void aim(const openvdb::Vec3d& eye, openvdb::util::NullInterrupter* interrupt = nullptr);
@@ -87,8 +90,8 @@ private:
     bool loadCell(Accessor& acc, const openvdb::Coord& base, Cell& cell, bool emit) const;
     template<bool Wrap, typename SegmentF>
     void walk(Accessor& acc, const openvdb::Vec3d& o, const openvdb::Vec3d& d, double ta,
-        double tb, bool emit, SegmentF&& segment) const;
-    void traceShadows(openvdb::util::NullInterrupter* interrupt);
+        double tb, bool emit, bool empty, SegmentF&& segment) const;
+    void traceShadows(const VoxelIndex* blockers, openvdb::util::NullInterrupter* interrupt);
 
     const Cloud& mCloud;
     std::optional<ScatteredSource> mScattering;

@@ -532,8 +532,11 @@ Renderer::setCloud(const openvdb::GridPtrVec& grids, openvdb::util::NullInterrup
         mWarnings.push_back("cloud '" + mOptions.cloud.density + "' has no source grid '"
             + mOptions.cloudSource + "': rendered absorbing only (solve the cloud first)");
     }
+    // Surfaces on the cloud's transform (a fog solved in a scene) stop the sun's light.
+    const VoxelIndex* blockers = mHasSurface && mScene.transform() == mCloud.transform()
+        ? &mScene.voxels() : nullptr;
     mShading.reset(new CloudShading(mCloud, J, grids, mOptions.cloudStep,
-        mOptions.cloudSourceOrder, interrupt));
+        mOptions.cloudSourceOrder, blockers, interrupt));
     mHasCloud = true;
     mCloudBox = mCloud.voxels().bbox();
     openvdb::BBoxd b = worldBoundsOf(mCloudBox, mCloud.transform());
