@@ -43,8 +43,6 @@ statsOf(const CloudTransfer& transfer)
     return stats;
 }
 
-// Colours (an RGB albedo of the medium or of the surfaces, RGB lamps): light of each colour
-// travels alone, so each channel is its own transfer (the medium's work three times over).
 // The scatteredSource() coefficient grids of @a J, from (n x width) values per channel.
 template<typename ValueT>
 openvdb::GridPtrVec
@@ -60,6 +58,8 @@ sourceGrids(const Cloud& cloud, const std::vector<ValueT>& c, size_t width, cons
     return grids;
 }
 
+// Colours (an RGB albedo of the medium or of the surfaces, RGB lamps): light of each colour
+// travels alone, so each channel is its own transfer (the medium's work three times over).
 openvdb::GridBase::Ptr
 solveCloudRgb(const Cloud& cloud, const CloudTransferOptions& options,
     openvdb::util::NullInterrupter* interrupt, const SolveControl& control,

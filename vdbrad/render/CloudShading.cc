@@ -267,7 +267,8 @@ CloudShading::aim(const Vec3d& eye, openvdb::util::NullInterrupter* interrupt)
                 const Vec3f J = mJ.rgb(i);
                 for (int c = 0; c < 3; ++c) S[c] = double(a[c]) * double(J[c]);
             }
-            const Vec3f e = emission.rgb(i);
+            // The medium emits through its extinction (Cloud.h): none where it has none.
+            const Vec3f e = mCloud.extinction(i) > 0.f ? emission.rgb(i) : Vec3f(0.f);
             for (int c = 0; c < 3; ++c) {
                 // A truncated harmonic series may dip below 0 where the light is faint.
                 mEmit[i][c] = float(kPi * std::max(0.0, double(mSigma[i][c]) * S[c] + double(e[c])));
