@@ -143,6 +143,13 @@ struct CloudTransfer::Impl
     // Mean escape factor M_v per voxel: Y_00^2 sum_{directions, senses} Omega f(tau), from the
     // sweeps' own float factors; 1 - omega0 (1 - M_v) is what iterate() divides I_00 by.
     std::vector<double> escape;
+    // 1 - c_v = (1 - omega0) + omega0 M_v: the fraction of what voxel v scatters that is not
+    // extinguished again in it (absorbed or escaped), formed without cancellation.
+    double escapes(size_t v) const
+    {
+        const double w = omega[v];
+        return (1.0 - w) + w * escape[v];
+    }
     // Anisotropic scattering: M = (K + 1)^2 radiance moments per voxel (M = 1: isotropic).
     int M = 1;
     std::vector<double> chi;         // delta-M scaled Legendre coefficients, l = 0..K

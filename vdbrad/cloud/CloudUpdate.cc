@@ -72,9 +72,8 @@ CloudTransfer::Impl::eliminateSelfScattering(std::vector<double>& sum,
 {
     const size_t M = size_t(this->M);
     for (size_t i = 0; i < n; ++i) {
-        const double w = omega[i], m = escape[i];
-        const double free = std::max((1.0 - w) + w * m, double(std::numeric_limits<float>::min()));
-        const double excess = M > 1 ? isoExcess[i] * m : 0.0;
+        const double free = std::max(escapes(i), double(std::numeric_limits<float>::min()));
+        const double excess = M > 1 ? isoExcess[i] * escape[i] : 0.0;
         sum[i * M] = (sum[i * M] - excess) / free;
     }
     for (size_t e = 0; e < n * M; ++e) moments[e] = float(sum[e]);
@@ -92,8 +91,7 @@ CloudTransfer::Impl::accelerateDiffusion(std::vector<double>& sum, const std::ve
     std::vector<double> r(n), delta;
     double change = 0.0, size = 0.0;
     for (size_t i = 0; i < n; ++i) {
-        const double w = omega[i], m = escape[i];
-        r[i] = ((1.0 - w) + w * m) * (sum[i * M] - double(before[i]));
+        r[i] = escapes(i) * (sum[i * M] - double(before[i]));
         change = std::max(change, std::abs(r[i]));
         size = std::max(size, std::abs(double(before[i]) + r[i]));
     }

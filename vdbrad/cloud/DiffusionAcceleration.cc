@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace vdbrad {
@@ -13,21 +14,33 @@ namespace {
 // Sums over fixed blocks of unknowns, added in block order: the same bits for any thread count.
 constexpr size_t kBlock = 4096;
 
-template<typename F>
-double
-blockSum(size_t size, const F& partial)
+// N sums at once: @a partial returns a block's N partial sums.
+template<size_t N, typename F>
+std::array<double, N>
+blockSums(size_t size, const F& partial)
 {
     const size_t blocks = (size + kBlock - 1) / kBlock;
-    std::vector<double> sums(blocks, 0.0);
+    std::vector<std::array<double, N>> sums(blocks);
     using Range = tbb::blocked_range<size_t>;
     tbb::parallel_for(Range(0, blocks), [&](const Range& r) {
         for (size_t b = r.begin(); b != r.end(); ++b) {
             sums[b] = partial(b * kBlock, std::min(size, (b + 1) * kBlock));
         }
     });
-    double total = 0.0;
-    for (double s : sums) total += s;
+    std::array<double, N> total{};
+    for (const auto& s : sums) {
+        for (size_t k = 0; k < N; ++k) total[k] += s[k];
+    }
     return total;
+}
+
+template<typename F>
+double
+blockSum(size_t size, const F& partial)
+{
+    return blockSums<1>(size, [&](size_t begin, size_t end) {
+        return std::array<double, 1>{partial(begin, end)};
+    })[0];
 }
 
 } // namespace
@@ -109,23 +122,21 @@ DiffusionAcceleration::correct(const std::vector<double>& residual,
     const size_t count = mVoxel.size();
     delta.assign(mVoxels, 0.0);
     std::vector<double> x(count, 0.0), r(count), z(count), p(count), q(count);
-    double rz = 0.0;
-    const double bb = blockSum(count, [&](size_t begin, size_t end) {
-        double s = 0.0;
+    // r.r and r.z in one pass (each block's two sums in the order of two passes: the same bits).
+    const auto first = blockSums<2>(count, [&](size_t begin, size_t end) {
+        std::array<double, 2> s{};
         for (size_t u = begin; u < end; ++u) {
             r[u] = mSource[u] * residual[mVoxel[u]];
             z[u] = r[u] / mDiagonal[u];
             p[u] = z[u];
-            s += r[u] * r[u];
+            s[0] += r[u] * r[u];
+            s[1] += r[u] * z[u];
         }
         return s;
     });
+    const double bb = first[0];
     if (!(bb > 0.0) || !std::isfinite(bb)) return 0;
-    rz = blockSum(count, [&](size_t begin, size_t end) {
-        double s = 0.0;
-        for (size_t u = begin; u < end; ++u) s += r[u] * z[u];
-        return s;
-    });
+    double rz = first[1];
     int it = 0;
     while (it < kMaxIterations) {
         ++it;
@@ -144,21 +155,18 @@ DiffusionAcceleration::correct(const std::vector<double>& residual,
         });
         if (!(pq > 0.0)) break;
         const double alpha = rz / pq;
-        const double rzNext = blockSum(count, [&](size_t begin, size_t end) {
-            double s = 0.0;
+        const auto next = blockSums<2>(count, [&](size_t begin, size_t end) {
+            std::array<double, 2> s{};
             for (size_t u = begin; u < end; ++u) {
                 x[u] += alpha * p[u];
                 r[u] -= alpha * q[u];
                 z[u] = r[u] / mDiagonal[u];
-                s += r[u] * z[u];
+                s[0] += r[u] * z[u];
+                s[1] += r[u] * r[u];
             }
             return s;
         });
-        const double rr = blockSum(count, [&](size_t begin, size_t end) {
-            double s = 0.0;
-            for (size_t u = begin; u < end; ++u) s += r[u] * r[u];
-            return s;
-        });
+        const double rzNext = next[0], rr = next[1];
         if (rr <= kTolerance * kTolerance * bb) break;
         const double beta = rzNext / rz;
         rz = rzNext;
