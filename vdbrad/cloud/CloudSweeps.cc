@@ -672,12 +672,9 @@ CloudTransfer::sweep(openvdb::util::NullInterrupter* interrupt)
     for (const std::vector<double>& part : sw.landed) {
         for (size_t c = 0; c < cells; ++c) landed[c] += part[c];
     }
+    // I_00 before the elimination overwrites it: the diffusion's residual is formed from it.
     std::vector<float> before;
-    if (impl.diffusion) {
-        before.resize(n);
-        for (size_t i = 0; i < n; ++i) before[i] = impl.moments[i * M];
-    }
-    impl.eliminateSelfScattering(sum, source.isoExcess);
+    impl.eliminateSelfScattering(sum, source.isoExcess, impl.diffusion ? &before : nullptr);
     if (impl.diffusion) impl.accelerateDiffusion(sum, before);
     Impl::Change change;
     const double absorbed = impl.updateMeanRadiance(sum, change);

@@ -264,7 +264,9 @@ struct CloudTransfer::Impl
     {
         double max = 0.0, size = 0.0;
     };
-    void eliminateSelfScattering(std::vector<double>& sum, const std::vector<double>& isoExcess);
+    // @a before, if not null, gets I_00 as it was (the diffusion's residual needs it).
+    void eliminateSelfScattering(std::vector<double>& sum, const std::vector<double>& isoExcess,
+        std::vector<float>* before = nullptr);
     void accelerateDiffusion(std::vector<double>& sum, const std::vector<float>& before);
     double updateMeanRadiance(const std::vector<double>& sum, Change& change);
     std::pair<double, double> updateGround(const std::vector<double>& landed, Change& change);

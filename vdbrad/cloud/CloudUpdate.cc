@@ -68,10 +68,12 @@ CloudTransfer::Impl::sources() const
 // local modes decay at a rate independent of tau.
 void
 CloudTransfer::Impl::eliminateSelfScattering(std::vector<double>& sum,
-    const std::vector<double>& isoExcess)
+    const std::vector<double>& isoExcess, std::vector<float>* before)
 {
     const size_t M = size_t(this->M);
+    if (before) before->resize(n);
     for (size_t i = 0; i < n; ++i) {
+        if (before) (*before)[i] = moments[i * M];
         const double free = std::max(escapes(i), double(std::numeric_limits<float>::min()));
         const double excess = M > 1 ? isoExcess[i] * escape[i] : 0.0;
         sum[i * M] = (sum[i * M] - excess) / free;
