@@ -16,4 +16,5 @@ V=$build/vdbrad
     --g 0.877 --sun 45,0 --tolerance 1e-4 --quiet
 /usr/bin/time -f "isotropic solve: %e s wall, %M KB peak" $V solve-cloud "$data" w0.vdb \
     --sun 45,0 --tolerance 1e-4 --quiet
-PYTHONPATH=$build/python /usr/bin/python3 "$here/benchmarks/cloud_pictures.py" "$here/docs/wdas-cloud.png"
+PYTHONPATH=$build/python /usr/bin/python3 "$here/benchmarks/cloud_pictures.py" \
+    "$here/docs/wdas-cloud.png"

@@ -1462,7 +1462,9 @@ TEST_F(CloudTest, ConservativeCloudUnderAUniformSkyIsAFurnace)
         double y00 = 0.0, rest = 0.0;
         for (size_t i = 0; i < cloud.size(); ++i) {
             y00 = std::max(y00, std::abs(c[i * width] / std::sqrt(4.0 * kPi) - L));
-            for (size_t k = 1; k < width; ++k) rest = std::max(rest, double(std::abs(c[i * width + k])));
+            for (size_t k = 1; k < width; ++k) {
+                rest = std::max(rest, double(std::abs(c[i * width + k])));
+            }
         }
         EXPECT_LT(y00, 1e-4 * L) << g;
         EXPECT_LT(rest, 1e-4 * L) << g;

@@ -1032,7 +1032,8 @@ TEST_F(RenderTest, CloudSingleScatteringUsesTheWholePhaseFunction)
     // order 8 (delta-M moves f = g^9 = 0.31 into the forward peak), seen from below at 20
     // degrees from the sunlight's direction and from above at 110 degrees. The sun's single
     // scattering is the slab formula in the delta-M scaled problem the solve solves (TMS):
-    //     L = w / (1 - w f) F p(Theta) / 4pi x (1 / mu) int_0^tau' e^(-t / mu0) e^(-(tau' - t) / mu) dt
+    //     L = w / (1 - w f) F p(Theta) / 4pi
+    //         x (1 / mu) int_0^tau' e^(-t / mu0) e^(-(tau' - t) / mu) dt
     // (tau' = (1 - w f) tau; reflected: the camera's path through the depth above t instead),
     // with the whole phase function p: the order-8 series differs by 40 % at 20 degrees.
     // With the solved moments zeroed the render is that alone (1e-4: the source is

@@ -53,7 +53,10 @@ struct ScatteredSource
     std::vector<openvdb::GridBase::ConstPtr> moments;
 
     /// @brief The name of coefficient @a k's grid for mean-intensity grid @a J.
-    static std::string gridName(const std::string& J, int k) { return J + "_sh" + std::to_string(k); }
+    static std::string gridName(const std::string& J, int k)
+    {
+        return J + "_sh" + std::to_string(k);
+    }
 
     /// @brief Write everything but the moments as metadata on @a J.
     void record(openvdb::GridBase& J) const;

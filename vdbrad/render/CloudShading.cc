@@ -214,7 +214,8 @@ CloudShading::traceShadows(const VoxelIndex* blockers, openvdb::util::NullInterr
                         depth = Vec3d(std::numeric_limits<double>::infinity());
                         return false;
                     }
-                    const Vec3d s0 = trilinear(cell.sigma, p0 - b), s1 = trilinear(cell.sigma, p1 - b);
+                    const Vec3d s0 = trilinear(cell.sigma, p0 - b);
+                    const Vec3d s1 = trilinear(cell.sigma, p1 - b);
                     depth += (s0 + s1) * (0.5 * (t1 - t0) * h);
                     return std::min({depth[0], depth[1], depth[2]}) < -std::log(kShadowOpaque);
                 };
@@ -271,7 +272,8 @@ CloudShading::aim(const Vec3d& eye, openvdb::util::NullInterrupter* interrupt)
             const Vec3f e = mCloud.extinction(i) > 0.f ? emission.rgb(i) : Vec3f(0.f);
             for (int c = 0; c < 3; ++c) {
                 // A truncated harmonic series may dip below 0 where the light is faint.
-                mEmit[i][c] = float(kPi * std::max(0.0, double(mSigma[i][c]) * S[c] + double(e[c])));
+                const double j = double(mSigma[i][c]) * S[c] + double(e[c]);
+                mEmit[i][c] = float(kPi * std::max(0.0, j));
             }
         }
     });
@@ -311,7 +313,8 @@ CloudShading::march(Accessor& acc, const Vec3d& eye, const Vec3d& dir, double t0
             const double dt = (t1 - t0) / steps;
             for (int k = 0; k < steps; ++k) {
                 const double a = t0 + double(k) * dt;
-                const Vec3d p0 = o + d * (a + dt * kGaussLo) - b, p1 = o + d * (a + dt * kGaussHi) - b;
+                const Vec3d p0 = o + d * (a + dt * kGaussLo) - b;
+                const Vec3d p1 = o + d * (a + dt * kGaussHi) - b;
                 const Vec3d sigma = (trilinear(cell.sigma, p0) + trilinear(cell.sigma, p1)) * 0.5;
                 const Vec3d j = mEmits
                     ? (trilinear(cell.emit, p0) + trilinear(cell.emit, p1)) * 0.5 : Vec3d(0.0);
