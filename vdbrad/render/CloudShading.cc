@@ -25,9 +25,8 @@ namespace {
 // A shadow ray whose transmittance falls below this carries no visible light.
 constexpr double kShadowOpaque = 1e-7;
 
-// Equal steps of at most @a step over @a length (index units). Rounding must not add a step
-// where the length is a whole number of them: the steps then end on the voxel centres, where
-// the interpolated fields bend, and the midpoint rule stays exact for fields linear between.
+// Equal steps of at most @a step over @a length (index units), without the extra step that
+// rounding would add where the length is a whole number of them (16/15 x 15 is a hair over 16).
 int
 stepsOver(double length, double step)
 {
